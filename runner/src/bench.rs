@@ -1,0 +1,133 @@
+//! `runner bench`: time a render workload. Each frame is a full render of `--spp` samples
+//! per pixel; its time is the sum of its passes' device times (GPU timestamp queries, or
+//! wall clock on the CPU backend). Rays counts camera, bounce, shadow and AO rays, as
+//! traced by the kernels themselves.
+use std::fmt::Write as _;
+
+use crate::cli::BenchArgs;
+use crate::error::Result;
+use crate::render::{open_backend, render};
+use crate::setup::{frame_params, load_scene};
+
+#[derive(Clone, Debug)]
+pub struct BenchReport {
+    pub scene: String,
+    pub triangles: usize,
+    pub bvh_build_ms: f64,
+    pub traversal: &'static str,
+    pub backend: String,
+    pub integrator: String,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub rays_per_frame: u64,
+    pub frame_ms: Vec<f64>,
+    pub pass_ms: Vec<f64>,
+}
+
+fn min(v: &[f64]) -> f64 {
+    v.iter().copied().fold(f64::INFINITY, f64::min)
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(|a, b| a.total_cmp(b));
+    let n = s.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    }
+}
+
+impl BenchReport {
+    pub fn rays_per_second(&self) -> f64 {
+        self.rays_per_frame as f64 / (median(&self.frame_ms) * 1e-3)
+    }
+
+    pub fn table(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "scene          {}", self.scene);
+        let _ = writeln!(s, "triangles      {}", self.triangles);
+        let _ = writeln!(s, "BVH            {} (build {:.1} ms)", self.traversal, self.bvh_build_ms);
+        let _ = writeln!(s, "backend        {}", self.backend);
+        let _ = writeln!(s, "workload       {} at {}x{}, {} spp", self.integrator, self.width, self.height, self.spp);
+        let _ = writeln!(s, "rays/frame     {}", self.rays_per_frame);
+        let _ = writeln!(
+            s,
+            "ms/frame       min {:.3}  median {:.3}  ({} runs)",
+            min(&self.frame_ms),
+            median(&self.frame_ms),
+            self.frame_ms.len()
+        );
+        let _ = writeln!(s, "ms/pass        min {:.3}  median {:.3}", min(&self.pass_ms), median(&self.pass_ms));
+        let _ = writeln!(s, "rays/s         {:.3} G", self.rays_per_second() * 1e-9);
+        s
+    }
+
+    pub fn json(&self) -> String {
+        format!(
+            "{{\"scene\":{:?},\"triangles\":{},\"traversal\":{:?},\"bvh_build_ms\":{:.3},\"backend\":{:?},\
+             \"integrator\":{:?},\"width\":{},\"height\":{},\"spp\":{},\"rays_per_frame\":{},\
+             \"frame_ms_min\":{:.4},\"frame_ms_median\":{:.4},\"pass_ms_min\":{:.4},\"pass_ms_median\":{:.4},\
+             \"rays_per_second\":{:.1}}}",
+            self.scene,
+            self.triangles,
+            self.traversal,
+            self.bvh_build_ms,
+            self.backend,
+            self.integrator,
+            self.width,
+            self.height,
+            self.spp,
+            self.rays_per_frame,
+            min(&self.frame_ms),
+            median(&self.frame_ms),
+            min(&self.pass_ms),
+            median(&self.pass_ms),
+            self.rays_per_second()
+        )
+    }
+}
+
+pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
+    if args.runs == 0 {
+        crate::bail!("--runs must be at least 1");
+    }
+    let scene = load_scene(&args.scene)?;
+    let params = frame_params(&args.scene, &args.kernel, &scene)?;
+    let mut backend = open_backend(args.kernel.backend, &scene, params.width, params.height)?;
+    let k = &args.kernel;
+    let mut frame_ms = Vec::new();
+    let mut pass_ms = Vec::new();
+    let mut rays_per_frame = 0;
+    for run in 0..=args.runs {
+        let (_, stats) = render(backend.as_mut(), k.integrator, &params, k.spp, 1, false)?;
+        if run > 0 {
+            frame_ms.push(stats.pass_ms.iter().sum());
+            pass_ms.extend(stats.pass_ms);
+            rays_per_frame = stats.rays;
+        }
+    }
+    Ok(BenchReport {
+        scene: args
+            .scene
+            .scene
+            .as_ref()
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|| "cornell-box".into()),
+        triangles: scene.triangles.len(),
+        bvh_build_ms: scene.bvh_build_time.as_secs_f64() * 1e3,
+        traversal: kernels::bvh::TRAVERSAL,
+        backend: backend.describe(),
+        integrator: format!("{:?}", k.integrator).to_lowercase(),
+        width: params.width,
+        height: params.height,
+        spp: k.spp,
+        rays_per_frame,
+        frame_ms,
+        pass_ms,
+    })
+}

@@ -1,0 +1,169 @@
+//! Command-line interface (clap). `render` is the contract later kernels extend.
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use glam::Vec3;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "runner",
+    version,
+    about = "GPU ray tracer in Rust: the same no_std kernels run as SPIR-V through wgpu and on the CPU",
+    long_about = "GPU ray tracer in Rust. Kernels (ambient occlusion, ...) are no_std Rust compiled \
+to SPIR-V by rust-gpu and run through wgpu (Vulkan); the very same functions run on the CPU \
+backend. Scenes are OBJ + MTL: Kd is the diffuse albedo, Ke the emitted radiance (front side = \
+counter-clockwise winding)."
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Render an image (PNG or EXR)
+    Render(RenderArgs),
+    /// Time a render workload: ms per frame from GPU timestamps, rays per second
+    Bench(BenchArgs),
+    /// Write a built-in scene (many-lights, rocks-<N>) as OBJ + MTL
+    Generate(GenerateArgs),
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, ValueEnum)]
+pub enum Integrator {
+    /// Ambient occlusion: fraction of cosine-weighted rays that escape within --ao-distance
+    Ao,
+    /// Path tracing (the course's loop): emission counts when a bounce hits it
+    Pt,
+    /// Path tracing with next-event estimation: a light sample and shadow ray per vertex
+    Nee,
+    /// NEE and BSDF sampling combined by multiple importance sampling (power heuristic)
+    Mis,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum LightSampling {
+    /// Every emissive triangle equally likely (the course)
+    Uniform,
+    /// In proportion to emitted power (alias table)
+    Power,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum BackendChoice {
+    /// A hardware GPU, else a software Vulkan driver (lavapipe), else the CPU backend
+    Auto,
+    /// A Vulkan adapter (hardware preferred); fail if there is none
+    Gpu,
+    /// The CPU backend: the same kernel functions, rayon over pixels
+    Cpu,
+}
+
+/// Scene, camera and image options shared by `render` and `bench`.
+#[derive(Args, Debug, Clone)]
+pub struct SceneArgs {
+    /// OBJ scene file (MTL files next to it), or a built-in scene: cornell-box,
+    /// many-lights, rocks-<N> (N triangles, e.g. rocks-1m) [default: cornell-box]
+    #[arg(long, value_name = "FILE.obj|NAME")]
+    pub scene: Option<PathBuf>,
+    /// Image width in pixels
+    #[arg(long, default_value_t = 800, value_name = "W")]
+    pub width: u32,
+    /// Image height in pixels
+    #[arg(long, default_value_t = 800, value_name = "H")]
+    pub height: u32,
+    /// Camera position [default: the scene's `# camera:` line, else framed from the bounds]
+    #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub eye: Option<Vec3>,
+    /// Point the camera looks at
+    #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub target: Option<Vec3>,
+    /// Up direction (the top of the image)
+    #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub up: Option<Vec3>,
+    /// Vertical field of view in degrees, in (0, 180)
+    #[arg(long, value_name = "DEG")]
+    pub fov: Option<f32>,
+}
+
+/// Integrator options shared by `render` and `bench`.
+#[derive(Args, Debug, Clone)]
+pub struct KernelArgs {
+    /// Which integrator (kernel) to run
+    #[arg(long, value_enum, default_value_t = Integrator::Ao)]
+    pub integrator: Integrator,
+    /// Samples per pixel (camera rays, each jittered in its pixel; the pixel is their mean)
+    #[arg(long, default_value_t = 16, value_name = "N")]
+    pub spp: u32,
+    /// Path segments (Mitsuba's max_depth): 1 = emitters seen directly, 2 = + direct light
+    #[arg(long, default_value_t = 8, value_name = "N")]
+    pub max_depth: u32,
+    /// Radiance of rays that leave the scene
+    #[arg(long, value_parser = parse_vec3, default_value = "0,0,0", value_name = "R,G,B")]
+    pub sky: Vec3,
+    /// How NEE and MIS pick a light triangle
+    #[arg(long, value_enum, default_value_t = LightSampling::Power)]
+    pub light_sampling: LightSampling,
+    /// AO: occlusion rays per camera sample
+    #[arg(long, default_value_t = 4, value_name = "N")]
+    pub ao_rays: u32,
+    /// AO: occlusion ray length [default: 1/4 of the scene's bounding-box diagonal]
+    #[arg(long, value_name = "D")]
+    pub ao_distance: Option<f32>,
+    /// Where to run: auto, gpu or cpu
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+    pub backend: BackendChoice,
+    /// Random seed: the same command and seed give the same image
+    #[arg(long, default_value_t = 0)]
+    pub seed: u32,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    #[command(flatten)]
+    pub kernel: KernelArgs,
+    /// Output image: .png (sRGB, clamped) or .exr (linear float RGB)
+    #[arg(long, default_value = "out.png", value_name = "FILE")]
+    pub out: PathBuf,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct BenchArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    #[command(flatten)]
+    pub kernel: KernelArgs,
+    /// Timed renders (after one untimed warm-up)
+    #[arg(long, default_value_t = 5, value_name = "N")]
+    pub runs: u32,
+    /// Print one JSON object instead of the table
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct GenerateArgs {
+    /// Built-in scene: many-lights or rocks-<N> (e.g. rocks-1m)
+    pub name: String,
+    /// Output OBJ file; the MTL file is written next to it
+    #[arg(long, value_name = "FILE.obj")]
+    pub out: PathBuf,
+}
+
+/// Parse "X,Y,Z" into a vector of finite numbers.
+pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!("expected X,Y,Z, got '{s}'"));
+    }
+    let mut v = [0.0f32; 3];
+    for (x, p) in v.iter_mut().zip(&parts) {
+        *x = p.parse().map_err(|_| format!("'{p}' is not a number"))?;
+        if !x.is_finite() {
+            return Err(format!("'{p}' is not a finite number"));
+        }
+    }
+    Ok(Vec3::from(v))
+}

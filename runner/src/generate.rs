@@ -1,0 +1,295 @@
+//! Deterministic built-in scenes: no downloads needed for tests and benchmarks.
+//! - `many-lights`: 128 small emitters of different colours and strengths, near and far,
+//!   over a floor with occluders (the course's case where plain NEE struggles).
+//! - `rocks-N`: N triangles (e.g. rocks-1m) of displaced icospheres scattered over a
+//!   ground, with real depth complexity, lit by one large area light.
+use std::collections::HashMap;
+use std::fmt::Write as _;
+
+use glam::Vec3;
+use kernels::rng::Rng;
+use kernels::types::{Material, Triangle};
+
+use crate::bail;
+use crate::error::Result;
+use crate::scene::{CameraHint, Scene};
+
+/// Names accepted by `--scene` besides OBJ paths.
+pub const BUILTIN_NAMES: &str = "cornell-box, many-lights, rocks-<N> (N triangles, e.g. rocks-100k, rocks-1m)";
+
+/// A generated scene before BVH construction.
+pub struct Generated {
+    pub triangles: Vec<Triangle>,
+    pub materials: Vec<Material>,
+    pub camera: CameraHint,
+}
+
+impl Generated {
+    pub fn into_scene(self) -> Result<Scene> {
+        let mut scene = Scene::new(self.triangles, self.materials)?;
+        scene.camera = Some(self.camera);
+        Ok(scene)
+    }
+}
+
+/// Parse "100k", "1m", "2500" into a count.
+fn parse_count(s: &str) -> Option<usize> {
+    let s = s.to_ascii_lowercase();
+    let (num, mult) = match s.chars().last()? {
+        'k' => (&s[..s.len() - 1], 1_000),
+        'm' => (&s[..s.len() - 1], 1_000_000),
+        _ => (&s[..], 1),
+    };
+    let x: f64 = num.parse().ok()?;
+    (x > 0.0 && x * mult as f64 <= 50e6).then_some((x * mult as f64) as usize)
+}
+
+/// The built-in scene called `name`, or None if there is none by that name.
+pub fn builtin(name: &str) -> Option<Result<Generated>> {
+    match name {
+        "many-lights" => Some(Ok(many_lights())),
+        _ => {
+            let n = name.strip_prefix("rocks-")?;
+            Some(match parse_count(n) {
+                Some(n) => Ok(rocks(n)),
+                None => Err(crate::error::Error(format!(
+                    "bad triangle count in '{name}' (use e.g. rocks-100k, rocks-1m)"
+                ))),
+            })
+        }
+    }
+}
+
+/// Closed icosphere of radius `r` around `c`, subdivided `subdiv` times; shared vertices
+/// are bit-identical in every triangle that uses them.
+pub fn icosphere(c: Vec3, r: f32, subdiv: u32, material: u32) -> Vec<Triangle> {
+    let (verts, faces) = icosphere_mesh(subdiv);
+    faces
+        .iter()
+        .map(|f| Triangle::new(c + verts[f[0]] * r, c + verts[f[1]] * r, c + verts[f[2]] * r, material))
+        .collect()
+}
+
+/// Unit icosphere as shared vertices and counter-clockwise (outward) faces.
+pub fn icosphere_mesh(subdiv: u32) -> (Vec<Vec3>, Vec<[usize; 3]>) {
+    let t = (1.0 + 5f32.sqrt()) / 2.0;
+    let mut verts: Vec<Vec3> = [
+        (-1.0, t, 0.0), (1.0, t, 0.0), (-1.0, -t, 0.0), (1.0, -t, 0.0),
+        (0.0, -1.0, t), (0.0, 1.0, t), (0.0, -1.0, -t), (0.0, 1.0, -t),
+        (t, 0.0, -1.0), (t, 0.0, 1.0), (-t, 0.0, -1.0), (-t, 0.0, 1.0),
+    ]
+    .iter()
+    .map(|&(x, y, z)| Vec3::new(x, y, z).normalize())
+    .collect();
+    let mut faces: Vec<[usize; 3]> = vec![
+        [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11],
+        [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8],
+        [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9],
+        [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+    ];
+    for _ in 0..subdiv {
+        let mut mid: HashMap<(usize, usize), usize> = HashMap::new();
+        let mut midpoint = |a: usize, b: usize, verts: &mut Vec<Vec3>| {
+            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                verts.push(((verts[a] + verts[b]) * 0.5).normalize());
+                verts.len() - 1
+            })
+        };
+        faces = faces
+            .iter()
+            .flat_map(|&[a, b, c]| {
+                let ab = midpoint(a, b, &mut verts);
+                let bc = midpoint(b, c, &mut verts);
+                let ca = midpoint(c, a, &mut verts);
+                [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+            })
+            .collect();
+    }
+    (verts, faces)
+}
+
+/// Two triangles of the quad a-b-c-d (counter-clockwise = front).
+pub fn quad(q: [Vec3; 4], material: u32) -> [Triangle; 2] {
+    [
+        Triangle::new(q[0], q[1], q[2], material),
+        Triangle::new(q[0], q[2], q[3], material),
+    ]
+}
+
+/// Closed axis-aligned box as 12 triangles, counter-clockwise seen from outside.
+pub fn closed_box(lo: Vec3, hi: Vec3, material: u32) -> Vec<Triangle> {
+    let p = |x: usize, y: usize, z: usize| Vec3::new([lo.x, hi.x][x], [lo.y, hi.y][y], [lo.z, hi.z][z]);
+    let quads = [
+        [p(0, 0, 0), p(0, 1, 0), p(1, 1, 0), p(1, 0, 0)], // -z
+        [p(0, 0, 1), p(1, 0, 1), p(1, 1, 1), p(0, 1, 1)], // +z
+        [p(0, 0, 0), p(1, 0, 0), p(1, 0, 1), p(0, 0, 1)], // -y
+        [p(0, 1, 0), p(0, 1, 1), p(1, 1, 1), p(1, 1, 0)], // +y
+        [p(0, 0, 0), p(0, 0, 1), p(0, 1, 1), p(0, 1, 0)], // -x
+        [p(1, 0, 0), p(1, 1, 0), p(1, 1, 1), p(1, 0, 1)], // +x
+    ];
+    quads.iter().flat_map(|q| quad(*q, material)).collect()
+}
+
+/// Fully saturated colour of hue h ∈ [0, 1).
+fn hue(h: f32) -> Vec3 {
+    let k = |n: f32| {
+        let k = (n + h * 6.0) % 6.0;
+        1.0 - k.min(4.0 - k).clamp(0.0, 1.0)
+    };
+    Vec3::new(k(5.0), k(3.0), k(1.0))
+}
+
+pub fn many_lights() -> Generated {
+    let mut rng = Rng::from_seed(2024);
+    let mut u = move || rng.next_f32();
+    let mut materials = vec![
+        Material::new(Vec3::splat(0.6), Vec3::ZERO),            // floor
+        Material::new(Vec3::new(0.7, 0.6, 0.5), Vec3::ZERO),    // blocks
+    ];
+    let half = 30.0;
+    let mut tris: Vec<Triangle> = quad(
+        [
+            Vec3::new(-half, 0.0, -half),
+            Vec3::new(-half, 0.0, half),
+            Vec3::new(half, 0.0, half),
+            Vec3::new(half, 0.0, -half),
+        ],
+        0,
+    )
+    .to_vec();
+    for _ in 0..24 {
+        let c = Vec3::new((u() - 0.5) * 40.0, 0.0, (u() - 0.5) * 40.0 - 5.0);
+        let s = Vec3::new(0.5 + 1.5 * u(), 0.5 + 3.0 * u(), 0.5 + 1.5 * u());
+        tris.extend(closed_box(c - Vec3::new(s.x, 0.0, s.z), c + s, 1));
+    }
+    // 128 emitters: small quads facing down, log-uniform strengths over 3 decades.
+    for _ in 0..128 {
+        let c = Vec3::new((u() - 0.5) * 50.0, 0.3 + 5.0 * u(), (u() - 0.5) * 50.0 - 5.0);
+        let s = 0.05 + 0.25 * u();
+        let strength = 10f32.powf(0.5 + 3.0 * u());
+        let colour = hue(u()) * 0.7 + Vec3::splat(0.3);
+        materials.push(Material::new(Vec3::splat(0.5), colour * strength));
+        let m = materials.len() as u32 - 1;
+        tris.extend(quad(
+            [
+                c + Vec3::new(-s, 0.0, -s),
+                c + Vec3::new(s, 0.0, -s),
+                c + Vec3::new(s, 0.0, s),
+                c + Vec3::new(-s, 0.0, s),
+            ],
+            m,
+        ));
+    }
+    Generated {
+        triangles: tris,
+        materials,
+        camera: CameraHint {
+            eye: Vec3::new(0.0, 4.0, 24.0),
+            target: Vec3::new(0.0, 0.5, -2.0),
+            up: Vec3::Y,
+            fov: 55.0,
+        },
+    }
+}
+
+/// Value noise on the unit sphere from a few random plane waves: cheap, smooth, seeded.
+fn bumps(p: Vec3, waves: &[(Vec3, f32)]) -> f32 {
+    waves.iter().map(|(k, phase)| (p.dot(*k) + phase).sin()).sum::<f32>() / waves.len() as f32
+}
+
+/// About `target` triangles: displaced icospheres (5,120 triangles each) of random sizes
+/// scattered and stacked over a ground plane, plus a large area light overhead.
+pub fn rocks(target: usize) -> Generated {
+    let mut rng = Rng::from_seed(7);
+    let mut u = move || rng.next_f32();
+    let (verts, faces) = icosphere_mesh(4);
+    let per_rock = faces.len();
+    let count = (target.saturating_sub(4) / per_rock).max(1);
+    // Spread rocks over an area that grows with their number: constant density, so depth
+    // complexity stays high whatever the size.
+    let extent = 10.0 * (count as f32).sqrt();
+    let materials = vec![
+        Material::new(Vec3::splat(0.5), Vec3::ZERO),
+        Material::new(Vec3::new(0.55, 0.45, 0.35), Vec3::ZERO),
+        Material::new(Vec3::splat(0.5), Vec3::splat(5.0)),
+    ];
+    let mut tris = Vec::with_capacity(count * per_rock + 4);
+    tris.extend(quad(
+        [
+            Vec3::new(-extent, 0.0, -extent),
+            Vec3::new(-extent, 0.0, extent),
+            Vec3::new(extent, 0.0, extent),
+            Vec3::new(extent, 0.0, -extent),
+        ],
+        0,
+    ));
+    for _ in 0..count {
+        let waves: Vec<(Vec3, f32)> = (0..6)
+            .map(|_| (Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5) * 12.0, u() * 6.283))
+            .collect();
+        let r = 1.0 + 4.0 * u() * u();
+        let c = Vec3::new((u() - 0.5) * 2.0 * extent, r * (0.3 + 1.5 * u()), (u() - 0.5) * 2.0 * extent);
+        let squash = Vec3::new(1.0 + 0.5 * u(), 0.5 + 0.7 * u(), 1.0 + 0.5 * u());
+        let displaced: Vec<Vec3> = verts.iter().map(|v| c + *v * squash * r * (1.0 + 0.35 * bumps(*v, &waves))).collect();
+        tris.extend(faces.iter().map(|f| Triangle::new(displaced[f[0]], displaced[f[1]], displaced[f[2]], 1)));
+    }
+    let h = 4.0 * extent.sqrt() + 30.0;
+    let l = 0.2 * extent;
+    tris.extend(quad(
+        [
+            Vec3::new(-l, h, -l),
+            Vec3::new(l, h, -l),
+            Vec3::new(l, h, l),
+            Vec3::new(-l, h, l),
+        ],
+        2,
+    ));
+    Generated {
+        triangles: tris,
+        materials,
+        camera: CameraHint {
+            eye: Vec3::new(0.0, 0.25 * extent + 8.0, extent * 1.1),
+            target: Vec3::new(0.0, 2.0, 0.0),
+            up: Vec3::Y,
+            fov: 50.0,
+        },
+    }
+}
+
+/// OBJ + MTL text for a generated scene (what `runner generate` writes).
+pub fn to_obj(g: &Generated, mtl_name: &str) -> (String, String) {
+    let mut obj = String::new();
+    let c = &g.camera;
+    let _ = writeln!(obj, "# Generated by `runner generate`.");
+    let _ = writeln!(
+        obj,
+        "# camera: eye={},{},{} target={},{},{} up={},{},{} fov={}",
+        c.eye.x, c.eye.y, c.eye.z, c.target.x, c.target.y, c.target.z, c.up.x, c.up.y, c.up.z, c.fov
+    );
+    let _ = writeln!(obj, "mtllib {mtl_name}");
+    let mut current = u32::MAX;
+    for (i, t) in g.triangles.iter().enumerate() {
+        if t.material != current {
+            current = t.material;
+            let _ = writeln!(obj, "usemtl m{current}");
+        }
+        for p in [t.p0, t.p1, t.p2] {
+            let _ = writeln!(obj, "v {} {} {}", p[0], p[1], p[2]);
+        }
+        let _ = writeln!(obj, "f {} {} {}", 3 * i + 1, 3 * i + 2, 3 * i + 3);
+    }
+    let mut mtl = String::new();
+    for (i, m) in g.materials.iter().enumerate() {
+        let _ = writeln!(mtl, "newmtl m{i}");
+        let _ = writeln!(mtl, "Kd {} {} {}", m.albedo[0], m.albedo[1], m.albedo[2]);
+        if m.is_emissive() {
+            let _ = writeln!(mtl, "Ke {} {} {}", m.emission[0], m.emission[1], m.emission[2]);
+        }
+    }
+    (obj, mtl)
+}
+
+/// Reject names that are neither built in nor files, listing what exists.
+pub fn unknown_scene(name: &str) -> Result<Generated> {
+    bail!("cannot read scene '{name}': no such file, and no built-in scene of that name ({BUILTIN_NAMES})")
+}

@@ -1,0 +1,452 @@
+//! GPU backend: wgpu on Vulkan, running the rust-gpu SPIR-V module built by build.rs.
+//! The module is passed through to the driver (naga does not read rust-gpu output), so the
+//! bind group layout here must mirror the bindings declared in shader-crate/src/entry.rs.
+use std::borrow::Cow;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use kernels::types::FrameParams;
+use wgpu::util::DeviceExt;
+
+use crate::backend::Backend;
+use crate::bail;
+use crate::cli::Integrator;
+use crate::error::{Error, Result};
+use crate::scene::Scene;
+
+/// The kernels' SPIR-V, compiled from shader-crate by runner/build.rs.
+const SPIRV: &[u8] = include_bytes!(env!("kernels.spv"));
+
+/// Workgroup size of every image kernel (`#[spirv(compute(threads(8, 8)))]`).
+const WORKGROUP: (u32, u32) = (8, 8);
+
+impl Integrator {
+    /// Name of the SPIR-V entry point that runs this integrator (rust-gpu names entry
+    /// points by their module path).
+    pub fn entry_point(self) -> &'static str {
+        match self {
+            Integrator::Ao => "entry::ao_main",
+            Integrator::Pt => "entry::pt_main",
+            Integrator::Nee => "entry::nee_main",
+            Integrator::Mis => "entry::mis_main",
+        }
+    }
+    pub const ALL: [Integrator; 4] = [Integrator::Ao, Integrator::Pt, Integrator::Nee, Integrator::Mis];
+}
+
+/// Prefer a hardware adapter or accept only a software one.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum AdapterKind {
+    Any,
+    SoftwareOnly,
+}
+
+/// The Vulkan adapters that can run our kernels (SPIR-V passthrough), best first:
+/// hardware GPUs, then software rasterisers such as lavapipe.
+pub fn adapters() -> Vec<wgpu::Adapter> {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::VULKAN,
+        // No validation layers by default even though release builds keep debug assertions;
+        // WGPU_VALIDATION=1 / WGPU_DEBUG=1 turn them on.
+        flags: wgpu::InstanceFlags::empty().with_env(),
+        ..wgpu::InstanceDescriptor::new_without_display_handle()
+    });
+    let mut list: Vec<wgpu::Adapter> = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN))
+        .into_iter()
+        .filter(|a| a.features().contains(wgpu::Features::PASSTHROUGH_SHADERS))
+        .collect();
+    list.sort_by_key(|a| is_software(a) as u8);
+    list
+}
+
+pub fn is_software(adapter: &wgpu::Adapter) -> bool {
+    adapter.get_info().device_type == wgpu::DeviceType::Cpu
+}
+
+/// Device, queue and one compute pipeline per integrator.
+pub struct GpuContext {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+    pub limits: wgpu::Limits,
+    timestamps: bool,
+    layout: wgpu::BindGroupLayout,
+    pipelines: HashMap<Integrator, wgpu::ComputePipeline>,
+    /// Validation errors and device loss, reported by wgpu's callbacks.
+    errors: Arc<Mutex<Option<String>>>,
+}
+
+impl GpuContext {
+    pub fn new(adapter: &wgpu::Adapter) -> Result<Self> {
+        let info = adapter.get_info();
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let mut features = wgpu::Features::PASSTHROUGH_SHADERS;
+        if timestamps {
+            features |= wgpu::Features::TIMESTAMP_QUERY;
+        }
+        // Take the adapter's own limits: large scenes need its full buffer sizes.
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("runner"),
+            required_features: features,
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .map_err(|e| Error(format!("cannot open GPU '{}': {e}", info.name)))?;
+
+        let errors = Arc::new(Mutex::new(None));
+        let sink = errors.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            sink.lock().unwrap().get_or_insert(format!("GPU error: {e}"));
+        }));
+        let sink = errors.clone();
+        device.set_device_lost_callback(move |reason, msg| {
+            sink.lock()
+                .unwrap()
+                .get_or_insert(format!("GPU device lost ({reason:?}): {msg}"));
+        });
+
+        let words: Vec<u32> = SPIRV
+            .chunks_exact(4)
+            .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+            .collect();
+        let entry_points: Vec<wgpu::PassthroughShaderEntryPoint> = Integrator::ALL
+            .iter()
+            .map(|i| wgpu::PassthroughShaderEntryPoint {
+                name: Cow::Borrowed(i.entry_point()),
+                workgroup_size: (WORKGROUP.0, WORKGROUP.1, 1),
+            })
+            .collect();
+        // SAFETY: the module is rust-gpu output validated by spirv-val at build time, and the
+        // bind group layout below matches the bindings it declares.
+        let module = unsafe {
+            device.create_shader_module_passthrough(wgpu::ShaderModuleDescriptorPassthrough {
+                label: Some("kernels"),
+                entry_points: Cow::Owned(entry_points),
+                spirv: Some(Cow::Owned(words)),
+                ..Default::default()
+            })
+        };
+
+        let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("scene"),
+            entries: &[
+                storage(0, true),  // FrameParams
+                storage(1, true),  // triangles
+                storage(2, true),  // materials
+                storage(3, true),  // BVH nodes
+                storage(4, true),  // lights
+                storage(5, false), // accumulation
+                storage(6, false), // rays traced per pixel
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("scene"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipelines = Integrator::ALL
+            .iter()
+            .map(|&i| {
+                let p = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(i.entry_point()),
+                    layout: Some(&pipeline_layout),
+                    module: &module,
+                    entry_point: Some(i.entry_point()),
+                    compilation_options: Default::default(),
+                    cache: None,
+                });
+                (i, p)
+            })
+            .collect();
+        let ctx = Self {
+            device,
+            queue,
+            info,
+            limits,
+            timestamps,
+            layout,
+            pipelines,
+            errors,
+        };
+        ctx.check_errors()?;
+        Ok(ctx)
+    }
+
+    fn check_errors(&self) -> Result<()> {
+        match self.errors.lock().unwrap().take() {
+            Some(e) => Err(Error(e)),
+            None => Ok(()),
+        }
+    }
+
+    fn wait(&self) -> Result<()> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error(format!("GPU wait failed: {e}")))?;
+        self.check_errors()
+    }
+
+    pub fn describe(&self) -> String {
+        format!(
+            "gpu ({}, {:?}, {})",
+            self.info.name,
+            self.info.device_type,
+            self.info.driver_info
+        )
+    }
+}
+
+/// Check a buffer against the device limits before allocating anything.
+fn check_buffer_size(limits: &wgpu::Limits, what: &str, bytes: u64) -> Result<()> {
+    let max = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    if bytes > max {
+        bail!(
+            "{what} needs {bytes} bytes, over this GPU's storage buffer limit of {max} bytes \
+             (by {} bytes)",
+            bytes - max
+        );
+    }
+    Ok(())
+}
+
+/// Storage buffers must not be empty: pad with one zeroed element.
+fn bytes_or_zero(bytes: &[u8], elem: usize) -> Cow<'_, [u8]> {
+    if bytes.is_empty() {
+        Cow::Owned(vec![0; elem])
+    } else {
+        Cow::Borrowed(bytes)
+    }
+}
+
+/// A scene and an image on the GPU.
+pub struct GpuBackend {
+    ctx: GpuContext,
+    width: u32,
+    height: u32,
+    params: wgpu::Buffer,
+    accum: wgpu::Buffer,
+    ray_counts: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+    queries: Option<(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
+}
+
+impl GpuBackend {
+    pub fn new(ctx: GpuContext, scene: &Scene, width: u32, height: u32) -> Result<Self> {
+        let limits = &ctx.limits;
+        let groups = (width.div_ceil(WORKGROUP.0), height.div_ceil(WORKGROUP.1));
+        let max_groups = limits.max_compute_workgroups_per_dimension;
+        if groups.0 > max_groups || groups.1 > max_groups {
+            bail!(
+                "image {width}x{height} needs {}x{} workgroups, over this GPU's limit of {max_groups} per dimension",
+                groups.0,
+                groups.1
+            );
+        }
+        let tri_bytes: &[u8] = bytemuck::cast_slice(&scene.triangles);
+        let mat_bytes: &[u8] = bytemuck::cast_slice(&scene.materials);
+        let node_bytes: &[u8] = bytemuck::cast_slice(&scene.nodes);
+        let light_bytes: &[u8] = bytemuck::cast_slice(&scene.lights);
+        let accum_size = width as u64 * height as u64 * 16;
+        check_buffer_size(limits, "the triangle buffer", tri_bytes.len() as u64)?;
+        check_buffer_size(limits, "the material buffer", mat_bytes.len() as u64)?;
+        check_buffer_size(limits, "the BVH node buffer", node_bytes.len() as u64)?;
+        check_buffer_size(limits, "the light buffer", light_bytes.len() as u64)?;
+        check_buffer_size(limits, "the image buffer", accum_size)?;
+
+        let device = &ctx.device;
+        let init = |label: &str, contents: &[u8], usage| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage,
+            })
+        };
+        let storage = wgpu::BufferUsages::STORAGE;
+        let params = init(
+            "params",
+            bytemuck::bytes_of(&FrameParams::default()),
+            storage | wgpu::BufferUsages::COPY_DST,
+        );
+        let triangles = init("triangles", &bytes_or_zero(tri_bytes, 48), storage);
+        let materials = init("materials", &bytes_or_zero(mat_bytes, 32), storage);
+        let nodes = init("bvh nodes", &bytes_or_zero(node_bytes, 80), storage);
+        let lights = init("lights", &bytes_or_zero(light_bytes, 16), storage);
+        let accum = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("accumulation"),
+            size: accum_size,
+            usage: storage | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let ray_counts = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ray counts"),
+            size: accum_size / 4,
+            usage: storage | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: accum_size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("scene"),
+            layout: &ctx.layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: triangles.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: materials.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: nodes.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: lights.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 5, resource: accum.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 6, resource: ray_counts.as_entire_binding() },
+            ],
+        });
+        let queries = ctx.timestamps.then(|| {
+            let set = device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("pass timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2,
+            });
+            let resolve = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamps"),
+                size: 16,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let read = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamps readback"),
+                size: 16,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            (set, resolve, read)
+        });
+        let backend = Self {
+            ctx,
+            width,
+            height,
+            params,
+            accum,
+            ray_counts,
+            readback,
+            bind_group,
+            queries,
+        };
+        backend.ctx.wait()?;
+        Ok(backend)
+    }
+
+    /// Copy a storage buffer into the readback buffer and return its bytes.
+    fn download(&self, buffer: &wgpu::Buffer) -> Result<Vec<u8>> {
+        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(buffer, 0, &self.readback, 0, buffer.size());
+        self.ctx.queue.submit([encoder.finish()]);
+        let mut bytes = self.read_buffer(&self.readback)?;
+        bytes.truncate(buffer.size() as usize);
+        Ok(bytes)
+    }
+
+    /// Map `buffer`, copy its bytes out, unmap.
+    fn read_buffer(&self, buffer: &wgpu::Buffer) -> Result<Vec<u8>> {
+        let status = Arc::new(Mutex::new(None));
+        let s = status.clone();
+        buffer.map_async(wgpu::MapMode::Read, .., move |r| {
+            *s.lock().unwrap() = Some(r);
+        });
+        self.ctx.wait()?;
+        match status.lock().unwrap().take() {
+            Some(Ok(())) => {}
+            Some(Err(e)) => bail!("GPU readback failed: {e}"),
+            None => bail!("GPU readback did not complete"),
+        }
+        let bytes = buffer
+            .get_mapped_range(..)
+            .map_err(|e| Error(format!("GPU readback failed: {e}")))?
+            .to_vec();
+        buffer.unmap();
+        Ok(bytes)
+    }
+}
+
+impl Backend for GpuBackend {
+    fn describe(&self) -> String {
+        self.ctx.describe()
+    }
+
+    fn pass(&mut self, integrator: Integrator, params: &FrameParams) -> Result<f64> {
+        let start = Instant::now();
+        let ctx = &self.ctx;
+        ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        {
+            let timestamp_writes = self.queries.as_ref().map(|(set, _, _)| {
+                wgpu::ComputePassTimestampWrites {
+                    query_set: set,
+                    beginning_of_pass_write_index: Some(0),
+                    end_of_pass_write_index: Some(1),
+                }
+            });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(integrator.entry_point()),
+                timestamp_writes,
+            });
+            pass.set_pipeline(&ctx.pipelines[&integrator]);
+            pass.set_bind_group(0, &self.bind_group, &[]);
+            pass.dispatch_workgroups(
+                self.width.div_ceil(WORKGROUP.0),
+                self.height.div_ceil(WORKGROUP.1),
+                1,
+            );
+        }
+        if let Some((set, resolve, read)) = &self.queries {
+            encoder.resolve_query_set(set, 0..2, resolve, 0);
+            encoder.copy_buffer_to_buffer(resolve, 0, read, 0, 16);
+        }
+        ctx.queue.submit([encoder.finish()]);
+        ctx.wait()?;
+        let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+        match &self.queries {
+            Some((_, _, read)) => {
+                let bytes = self.read_buffer(read)?;
+                let t: Vec<u64> = bytemuck::pod_collect_to_vec(&bytes);
+                let period = ctx.queue.get_timestamp_period() as f64;
+                Ok(t[1].saturating_sub(t[0]) as f64 * period * 1e-6)
+            }
+            None => Ok(wall_ms),
+        }
+    }
+
+    fn read_accumulation(&mut self) -> Result<Vec<[f32; 4]>> {
+        let bytes = self.download(&self.accum)?;
+        // Mapped bytes carry no alignment guarantee: copy into properly typed storage.
+        Ok(bytemuck::pod_collect_to_vec(&bytes))
+    }
+
+    fn rays_traced(&mut self) -> Result<u64> {
+        let bytes = self.download(&self.ray_counts)?;
+        let counts: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes);
+        Ok(counts.iter().map(|&c| c as u64).sum())
+    }
+
+    fn clear(&mut self) -> Result<()> {
+        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+        encoder.clear_buffer(&self.accum, 0, None);
+        encoder.clear_buffer(&self.ray_counts, 0, None);
+        self.ctx.queue.submit([encoder.finish()]);
+        self.ctx.wait()
+    }
+}

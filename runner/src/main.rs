@@ -1,0 +1,78 @@
+use std::process::ExitCode;
+
+use clap::Parser;
+use runner::cli::{Cli, Command, GenerateArgs, RenderArgs};
+use runner::error::{Context, Result};
+use runner::output::{check_writable, write_image};
+use runner::render::{open_backend, render};
+use runner::setup::{frame_params, load_scene};
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render(args) => render_command(&args),
+        Command::Bench(args) => runner::bench::bench(&args).map(|r| {
+            println!("{}", if args.json { r.json() } else { r.table() });
+        }),
+        Command::Generate(args) => generate_command(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn render_command(args: &RenderArgs) -> Result<()> {
+    check_writable(&args.out)?;
+    let scene = load_scene(&args.scene)?;
+    let params = frame_params(&args.scene, &args.kernel, &scene)?;
+    let mut backend = open_backend(args.kernel.backend, &scene, params.width, params.height)?;
+    eprintln!(
+        "{} triangles ({} emissive), {}x{}, {} spp, integrator {:?}, BVH {}, backend {}",
+        scene.triangles.len(),
+        scene.lights.len(),
+        params.width,
+        params.height,
+        args.kernel.spp,
+        args.kernel.integrator,
+        kernels::bvh::TRAVERSAL,
+        backend.describe()
+    );
+    let (image, stats) = render(
+        backend.as_mut(),
+        args.kernel.integrator,
+        &params,
+        args.kernel.spp,
+        1,
+        true,
+    )?;
+    write_image(&args.out, &image)?;
+    let total: f64 = stats.pass_ms.iter().sum();
+    eprintln!(
+        "wrote {} ({total:.1} ms of kernel time, {:.1} M rays)",
+        args.out.display(),
+        stats.rays as f64 * 1e-6
+    );
+    Ok(())
+}
+
+fn generate_command(args: &GenerateArgs) -> Result<()> {
+    let generated = match runner::generate::builtin(&args.name) {
+        Some(g) => g?,
+        None => runner::bail!(
+            "no built-in scene '{}' ({})",
+            args.name,
+            runner::generate::BUILTIN_NAMES
+        ),
+    };
+    let mtl_path = args.out.with_extension("mtl");
+    let mtl_name = mtl_path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let (obj, mtl) = runner::generate::to_obj(&generated, &mtl_name);
+    std::fs::write(&args.out, obj).context(|| format!("cannot write '{}'", args.out.display()))?;
+    std::fs::write(&mtl_path, mtl).context(|| format!("cannot write '{}'", mtl_path.display()))?;
+    eprintln!("wrote {} and {} ({} triangles)", args.out.display(), mtl_path.display(), generated.triangles.len());
+    Ok(())
+}

@@ -1,0 +1,236 @@
+//! Scenes: triangles with materials, the list of emitters, bounds and an optional default
+//! camera. Loaded from OBJ + MTL with tobj (triangulated); `Kd` is the Lambertian albedo,
+//! `Ke` the radiance emitted from the front (counter-clockwise) side.
+use std::path::Path;
+
+use glam::Vec3;
+use kernels::bvh::BvhNode;
+use kernels::types::{Light, Material, Triangle};
+
+use crate::bail;
+use crate::error::{Error, Result};
+
+/// Albedo of surfaces with no material (missing MTL or no `usemtl`).
+pub const DEFAULT_ALBEDO: f32 = 0.8;
+
+/// A camera stored in the scene file as a comment line:
+/// `# camera: eye=X,Y,Z target=X,Y,Z up=X,Y,Z fov=DEG`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraHint {
+    pub eye: Vec3,
+    pub target: Vec3,
+    pub up: Vec3,
+    pub fov: f32,
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct Scene {
+    /// Triangles in BVH leaf order.
+    pub triangles: Vec<Triangle>,
+    /// The BVH of the traversal compiled into the kernels.
+    pub nodes: Vec<BvhNode>,
+    pub bvh_build_time: std::time::Duration,
+    pub materials: Vec<Material>,
+    /// The emissive triangles, with the alias table for power sampling.
+    pub lights: Vec<Light>,
+    pub camera: Option<CameraHint>,
+    pub warnings: Vec<String>,
+}
+
+impl Scene {
+    /// Build from triangles and materials: drop degenerate triangles (zero area or
+    /// non-finite) with a warning, build the BVH, put the triangles in its leaf order, and
+    /// collect the emitters.
+    pub fn new(triangles: Vec<Triangle>, materials: Vec<Material>) -> Result<Self> {
+        let total = triangles.len();
+        let triangles: Vec<Triangle> = triangles.into_iter().filter(is_proper).collect();
+        let mut warnings = Vec::new();
+        if triangles.len() < total {
+            warnings.push(format!(
+                "dropped {} degenerate triangle(s) (zero area)",
+                total - triangles.len()
+            ));
+        }
+        if triangles.is_empty() {
+            bail!("the scene has no triangles");
+        }
+        if let Some(t) = triangles.iter().find(|t| t.material as usize >= materials.len()) {
+            bail!("triangle refers to material {} of {}", t.material, materials.len());
+        }
+        let bvh = crate::accel::build(&triangles);
+        let mut triangles = crate::accel::reorder(&triangles, &bvh.order);
+        let lights = crate::lights::build_light_table(&mut triangles, &materials);
+        Ok(Self {
+            triangles,
+            nodes: bvh.nodes,
+            bvh_build_time: bvh.build_time,
+            materials,
+            lights,
+            camera: None,
+            warnings,
+        })
+    }
+
+    /// The buffers as the kernels see them.
+    pub fn kernel(&self) -> kernels::bvh::Scene<'_> {
+        kernels::bvh::Scene {
+            triangles: &self.triangles,
+            materials: &self.materials,
+            nodes: &self.nodes,
+            lights: &self.lights,
+        }
+    }
+
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for t in &self.triangles {
+            for p in [t.p0, t.p1, t.p2] {
+                lo = lo.min(Vec3::from(p));
+                hi = hi.max(Vec3::from(p));
+            }
+        }
+        (lo, hi)
+    }
+
+    /// Length of the bounding-box diagonal: the scene's natural length scale.
+    pub fn extent(&self) -> f32 {
+        let (lo, hi) = self.bounds();
+        (hi - lo).length()
+    }
+}
+
+fn is_proper(t: &Triangle) -> bool {
+    let a = t.area();
+    a.is_finite() && a > 0.0
+}
+
+/// Load an OBJ file (and the MTL files it names).
+pub fn load_obj(path: &Path) -> Result<Scene> {
+    let text = match std::fs::read(path) {
+        Ok(bytes) => bytes,
+        Err(e) => bail!("cannot read scene '{}': {e}", path.display()),
+    };
+    let text = String::from_utf8_lossy(&text);
+    check_vertices(path, &text)?;
+    let camera = parse_camera_hint(path, &text)?;
+
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: false,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    let (models, mtl_result) = tobj::load_obj(path, &options)
+        .map_err(|e| Error(format!("cannot load scene '{}': {e}", path.display())))?;
+    let mut warnings = Vec::new();
+    let mut materials: Vec<Material> = match mtl_result {
+        Ok(mtls) => mtls.iter().map(material_from_mtl).collect(),
+        Err(e) => {
+            if models.iter().any(|m| m.mesh.material_id.is_some()) || text.contains("mtllib") {
+                warnings.push(format!(
+                    "materials of '{}' could not be loaded ({e}); using a grey default",
+                    path.display()
+                ));
+            }
+            Vec::new()
+        }
+    };
+    let default_material = materials.len() as u32;
+    materials.push(Material::new(Vec3::splat(DEFAULT_ALBEDO), Vec3::ZERO));
+
+    let mut triangles = Vec::new();
+    for model in &models {
+        let mesh = &model.mesh;
+        let material = mesh
+            .material_id
+            .map(|m| m as u32)
+            .filter(|&m| m < default_material)
+            .unwrap_or(default_material);
+        let vertex = |i: u32| -> Result<Vec3> {
+            let i = i as usize;
+            match mesh.positions.get(3 * i..3 * i + 3) {
+                Some(p) => Ok(Vec3::new(p[0], p[1], p[2])),
+                None => bail!(
+                    "scene '{}': face index {} is out of range ({} vertices)",
+                    path.display(),
+                    i + 1,
+                    mesh.positions.len() / 3
+                ),
+            }
+        };
+        for face in mesh.indices.chunks_exact(3) {
+            triangles.push(Triangle::new(
+                vertex(face[0])?,
+                vertex(face[1])?,
+                vertex(face[2])?,
+                material,
+            ));
+        }
+    }
+    let mut scene = Scene::new(triangles, materials)
+        .map_err(|e| Error(format!("scene '{}': {e}", path.display())))?;
+    warnings.append(&mut scene.warnings);
+    scene.warnings = warnings;
+    scene.camera = camera;
+    Ok(scene)
+}
+
+fn material_from_mtl(m: &tobj::Material) -> Material {
+    let kd = m.diffuse.map(Vec3::from).unwrap_or(Vec3::splat(DEFAULT_ALBEDO));
+    let ke = m.emissive.map(Vec3::from).unwrap_or(Vec3::ZERO);
+    Material::new(kd.clamp(Vec3::ZERO, Vec3::ONE), ke.max(Vec3::ZERO))
+}
+
+/// Reject vertex lines with non-finite coordinates, naming the line: tobj would accept
+/// "nan" and "inf" and the renderer would silently produce garbage.
+fn check_vertices(path: &Path, text: &str) -> Result<()> {
+    for (i, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        if words.next() != Some("v") {
+            continue;
+        }
+        for w in words.take(3) {
+            match w.parse::<f32>() {
+                Ok(x) if x.is_finite() => {}
+                Ok(_) => bail!(
+                    "{}:{}: vertex coordinate '{w}' is not a finite number",
+                    path.display(),
+                    i + 1
+                ),
+                Err(_) => bail!("{}:{}: bad vertex coordinate '{w}'", path.display(), i + 1),
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Parse `# camera: eye=X,Y,Z target=X,Y,Z up=X,Y,Z fov=DEG` if the file has one.
+fn parse_camera_hint(path: &Path, text: &str) -> Result<Option<CameraHint>> {
+    let Some((n, line)) = text
+        .lines()
+        .enumerate()
+        .find(|(_, l)| l.trim_start().starts_with("# camera:"))
+    else {
+        return Ok(None);
+    };
+    let bad = || Error(format!("{}:{}: bad camera line '{line}'", path.display(), n + 1));
+    let mut hint = CameraHint {
+        eye: Vec3::ZERO,
+        target: Vec3::Z,
+        up: Vec3::Y,
+        fov: 45.0,
+    };
+    for kv in line.trim_start()["# camera:".len()..].split_whitespace() {
+        let (k, v) = kv.split_once('=').ok_or_else(bad)?;
+        match k {
+            "eye" => hint.eye = crate::cli::parse_vec3(v).map_err(|_| bad())?,
+            "target" => hint.target = crate::cli::parse_vec3(v).map_err(|_| bad())?,
+            "up" => hint.up = crate::cli::parse_vec3(v).map_err(|_| bad())?,
+            "fov" => hint.fov = v.parse().map_err(|_| bad())?,
+            _ => return Err(bad()),
+        }
+    }
+    Ok(Some(hint))
+}

@@ -1,0 +1,113 @@
+//! Turn command-line options and a scene into kernel parameters, validating on the way.
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use kernels::camera::look_at;
+use kernels::types::{Camera, FrameParams};
+
+use crate::bail;
+use crate::cli::{Integrator, KernelArgs, LightSampling, SceneArgs};
+use crate::error::Result;
+use crate::scene::{load_obj, Scene};
+
+/// The scene rendered when `--scene` is not given.
+pub fn default_scene_path() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/cornell_box.obj")
+}
+
+/// Load the scene named on the command line: an OBJ file, or a built-in scene's name
+/// (see `generate`); the Cornell box by default. Prints the scene's warnings.
+pub fn load_scene(args: &SceneArgs) -> Result<Scene> {
+    let path = args.scene.clone().unwrap_or_else(default_scene_path);
+    let name = path.to_string_lossy();
+    let scene = if path.is_file() || path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")) {
+        load_obj(&path)?
+    } else if name == "cornell-box" {
+        load_obj(&default_scene_path())?
+    } else {
+        match crate::generate::builtin(&name) {
+            Some(generated) => generated?.into_scene()?,
+            None => crate::generate::unknown_scene(&name)?.into_scene()?,
+        }
+    };
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(scene)
+}
+
+/// Camera from the flags, else the scene's `# camera:` line, else one that frames the
+/// scene's bounds from +z.
+pub fn camera(args: &SceneArgs, scene: &Scene) -> Result<Camera> {
+    if args.width == 0 || args.height == 0 {
+        bail!("image size must be at least 1x1, got {}x{}", args.width, args.height);
+    }
+    let (lo, hi) = scene.bounds();
+    let centre = 0.5 * (lo + hi);
+    let hint = scene.camera;
+    let fov = args.fov.or(hint.map(|h| h.fov)).unwrap_or(45.0);
+    if !(fov > 0.0 && fov < 180.0) {
+        bail!("--fov must be in (0, 180) degrees, got {fov}");
+    }
+    let target = args.target.or(hint.map(|h| h.target)).unwrap_or(centre);
+    let up = args.up.or(hint.map(|h| h.up)).unwrap_or(Vec3::Y);
+    let eye = args.eye.or(hint.map(|h| h.eye)).unwrap_or_else(|| {
+        let radius = 0.5 * (hi - lo).length();
+        target + Vec3::Z * (radius / (0.5 * fov.to_radians()).sin())
+    });
+    let forward = target - eye;
+    if forward.length() <= f32::EPSILON * eye.abs().max_element().max(1.0) {
+        bail!("--eye and --target are the same point");
+    }
+    if up.length() == 0.0 || forward.normalize().cross(up.normalize()).length() < 1e-6 {
+        bail!("--up must not be zero or parallel to the view direction (target - eye)");
+    }
+    let aspect = args.width as f32 / args.height as f32;
+    Ok(look_at(eye, target, up, fov, aspect))
+}
+
+pub fn frame_params(args: &SceneArgs, kernel: &KernelArgs, scene: &Scene) -> Result<FrameParams> {
+    if kernel.spp == 0 {
+        bail!("--spp must be at least 1");
+    }
+    if kernel.ao_rays == 0 {
+        bail!("--ao-rays must be at least 1");
+    }
+    if kernel.max_depth == 0 {
+        bail!("--max-depth must be at least 1");
+    }
+    if kernel.sky.min_element() < 0.0 {
+        bail!("--sky must not be negative");
+    }
+    let needs_lights = matches!(kernel.integrator, Integrator::Pt | Integrator::Nee | Integrator::Mis);
+    if needs_lights && scene.lights.is_empty() {
+        if kernel.sky == Vec3::ZERO {
+            bail!(
+                "the scene has no emitters (no material with Ke > 0) and --sky is black: \
+                 the {:?} image would be black",
+                kernel.integrator
+            );
+        }
+        eprintln!("warning: the scene has no emitters; only --sky lights it");
+    }
+    let ao_distance = kernel.ao_distance.unwrap_or(0.25 * scene.extent());
+    if !(ao_distance > 0.0 && ao_distance.is_finite()) {
+        bail!("--ao-distance must be a positive number, got {ao_distance}");
+    }
+    Ok(FrameParams {
+        camera: camera(args, scene)?,
+        width: args.width,
+        height: args.height,
+        seed: kernel.seed,
+        ao_rays: kernel.ao_rays,
+        ao_distance,
+        sky: kernel.sky.to_array(),
+        max_depth: kernel.max_depth,
+        light_sampling: match kernel.light_sampling {
+            LightSampling::Uniform => kernels::types::LIGHT_SAMPLING_UNIFORM,
+            LightSampling::Power => kernels::types::LIGHT_SAMPLING_POWER,
+        },
+        rr_depth: 3,
+        ..Default::default()
+    })
+}

@@ -1,0 +1,357 @@
+//! Scene queries: closest hit and any hit (shadow/AO rays) by brute force, over a binary
+//! BVH, or over a compressed 8-wide BVH (CWBVH). `Scene` uses the traversal picked by cargo
+//! feature; every variant answers the same question, and the tests hold them to it.
+use crate::glam::Vec3;
+use crate::intersect::{intersect_aabb, Hit, Ray, TriangleTester};
+use crate::math::vec3;
+use crate::types::{Bvh2Node, CwBvhNode, Light, Material, Triangle};
+
+/// The node type of the traversal compiled in.
+#[cfg(any(feature = "traversal-bvh2", feature = "traversal-brute-force"))]
+pub type BvhNode = Bvh2Node;
+#[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
+pub type BvhNode = CwBvhNode;
+
+/// Name of the traversal compiled in, for reports.
+pub const TRAVERSAL: &str = if cfg!(feature = "traversal-brute-force") {
+    "brute-force"
+} else if cfg!(feature = "traversal-bvh2") {
+    "bvh2"
+} else {
+    "cwbvh"
+};
+
+/// Traversal stack depth. A BVH2 from PLOC over a few million triangles is well under 64
+/// levels; an ordered traversal pushes at most one node per level.
+pub const BVH2_STACK: usize = 64;
+/// CWBVH stack of node groups: 8-wide trees are shallow (obvhs validates depth < 32).
+pub const CWBVH_STACK: usize = 32;
+
+/// The scene buffers a kernel reads, bundled so integrators take one argument.
+#[derive(Copy, Clone)]
+pub struct Scene<'a> {
+    pub triangles: &'a [Triangle],
+    pub materials: &'a [Material],
+    pub nodes: &'a [BvhNode],
+    pub lights: &'a [Light],
+}
+
+impl<'a> Scene<'a> {
+    pub fn closest_hit(&self, ray: &Ray, t_max: f32) -> Hit {
+        #[cfg(feature = "traversal-brute-force")]
+        return brute_force_closest_hit(self.triangles, ray, t_max);
+        #[cfg(all(feature = "traversal-bvh2", not(feature = "traversal-brute-force")))]
+        return bvh2_traverse(self.triangles, self.nodes, ray, t_max, false);
+        #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
+        return cwbvh_traverse(self.triangles, self.nodes, ray, t_max, false);
+    }
+
+    pub fn any_hit(&self, ray: &Ray, t_max: f32) -> bool {
+        #[cfg(feature = "traversal-brute-force")]
+        return brute_force_any_hit(self.triangles, ray, t_max);
+        #[cfg(all(feature = "traversal-bvh2", not(feature = "traversal-brute-force")))]
+        return bvh2_traverse(self.triangles, self.nodes, ray, t_max, true).is_hit();
+        #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
+        return cwbvh_traverse(self.triangles, self.nodes, ray, t_max, true).is_hit();
+    }
+
+    pub fn material_of(&self, prim: u32) -> Material {
+        self.materials[self.triangles[prim as usize].material as usize]
+    }
+}
+
+/// Test every triangle, keep the nearest: the course's first version.
+pub fn brute_force_closest_hit(triangles: &[Triangle], ray: &Ray, t_max: f32) -> Hit {
+    let tester = TriangleTester::new(ray);
+    let mut hit = Hit::none(t_max);
+    let mut i = 0;
+    while i < triangles.len() {
+        if let Some((t, b1, b2)) = tester.intersect(&triangles[i], 0.0, hit.t) {
+            hit = Hit { t, b1, b2, prim: i as u32 };
+        }
+        i += 1;
+    }
+    hit
+}
+
+/// Stop at the first occluder closer than `t_max`.
+pub fn brute_force_any_hit(triangles: &[Triangle], ray: &Ray, t_max: f32) -> bool {
+    let tester = TriangleTester::new(ray);
+    let mut i = 0;
+    while i < triangles.len() {
+        if tester.intersect(&triangles[i], 0.0, t_max).is_some() {
+            return true;
+        }
+        i += 1;
+    }
+    false
+}
+
+/// Test triangles `first .. first + count` against the ray, shrinking `hit.t`.
+/// Returns true when `any` is set and something was hit (the caller stops).
+fn test_leaf(
+    triangles: &[Triangle],
+    tester: &TriangleTester,
+    first: u32,
+    count: u32,
+    hit: &mut Hit,
+    any: bool,
+) -> bool {
+    let mut i = first;
+    while i < first + count {
+        if let Some((t, b1, b2)) = tester.intersect(&triangles[i as usize], 0.0, hit.t) {
+            *hit = Hit { t, b1, b2, prim: i };
+            if any {
+                return true;
+            }
+        }
+        i += 1;
+    }
+    false
+}
+
+/// Ordered stack traversal of a binary BVH: visit the nearer child first, push the other.
+/// With `any`, return at the first hit (any hit is enough for shadow and AO rays).
+pub fn bvh2_traverse(
+    triangles: &[Triangle],
+    nodes: &[Bvh2Node],
+    ray: &Ray,
+    t_max: f32,
+    any: bool,
+) -> Hit {
+    let tester = TriangleTester::new(ray);
+    let inv_dir = ray.dir.recip();
+    let mut hit = Hit::none(t_max);
+    if nodes.is_empty() {
+        return hit;
+    }
+    let root = nodes[0];
+    if intersect_aabb(ray.origin, inv_dir, vec3(root.lo), vec3(root.hi), hit.t) == f32::INFINITY {
+        return hit;
+    }
+    let mut stack = [0u32; BVH2_STACK];
+    let mut sp = 0usize;
+    let mut current = 0u32;
+    loop {
+        let node = nodes[current as usize];
+        let mut next_valid = false;
+        if node.count > 0 {
+            if test_leaf(triangles, &tester, node.first, node.count, &mut hit, any) {
+                return hit;
+            }
+        } else {
+            let (l, r) = (nodes[node.first as usize], nodes[node.first as usize + 1]);
+            let tl = intersect_aabb(ray.origin, inv_dir, vec3(l.lo), vec3(l.hi), hit.t);
+            let tr = intersect_aabb(ray.origin, inv_dir, vec3(r.lo), vec3(r.hi), hit.t);
+            let (near, far, t_near, t_far) = if tl <= tr {
+                (node.first, node.first + 1, tl, tr)
+            } else {
+                (node.first + 1, node.first, tr, tl)
+            };
+            if t_near != f32::INFINITY {
+                current = near;
+                next_valid = true;
+                if t_far != f32::INFINITY && sp < BVH2_STACK {
+                    stack[sp] = far;
+                    sp += 1;
+                }
+            }
+        }
+        if !next_valid {
+            if sp == 0 {
+                break;
+            }
+            sp -= 1;
+            current = stack[sp];
+        }
+    }
+    hit
+}
+
+/// Byte `i` (0..8) of a little-endian pair of words.
+fn byte8(words: [u32; 2], i: u32) -> u32 {
+    let w = if i < 4 { words[0] } else { words[1] };
+    (w >> ((i & 3) * 8)) & 0xff
+}
+
+/// Index of the highest set bit (x != 0).
+fn first_bit_high(x: u32) -> u32 {
+    31 - x.leading_zeros()
+}
+
+/// Intersect the ray with the 8 quantised child boxes of a CWBVH node. Returns the hit
+/// mask in the paper's layout: high byte = interior children hit (bit 24 + traversal
+/// priority), low 24 bits = triangles of the leaf children hit.
+fn cwbvh_node_hits(node: &CwBvhNode, origin: Vec3, inv_dir: Vec3, oct_inv: u32, t_max: f32) -> u32 {
+    // Child box = p + 2^(e - 127) · q: transform the ray into the node's quantised grid.
+    let e = node.e_imask;
+    let scale = Vec3::new(
+        f32::from_bits((e & 0xff) << 23),
+        f32::from_bits(((e >> 8) & 0xff) << 23),
+        f32::from_bits(((e >> 16) & 0xff) << 23),
+    );
+    let adj_inv = scale * inv_dir;
+    let adj_origin = (vec3(node.p) - origin) * inv_dir;
+    let mut mask = 0u32;
+    let mut i = 0u32;
+    while i < 8 {
+        let meta = byte8(node.child_meta, i);
+        if meta != 0 {
+            let lo = Vec3::new(
+                byte8(node.child_min_x, i) as f32,
+                byte8(node.child_min_y, i) as f32,
+                byte8(node.child_min_z, i) as f32,
+            );
+            let hi = Vec3::new(
+                byte8(node.child_max_x, i) as f32,
+                byte8(node.child_max_y, i) as f32,
+                byte8(node.child_max_z, i) as f32,
+            );
+            let t0 = lo * adj_inv + adj_origin;
+            let t1 = hi * adj_inv + adj_origin;
+            let t_near = t0.min(t1).max_element().max(0.0);
+            let t_far = t0.max(t1).min_element().min(t_max);
+            if t_near <= t_far {
+                if meta & 0x18 == 0x18 {
+                    // Interior child: meta = 24 + slot. XOR with the ray octant orders the
+                    // children front to back when popped highest bit first.
+                    mask |= 1 << ((meta & 31) ^ oct_inv);
+                } else {
+                    // Leaf child: unary triangle count in the top 3 bits, offset below.
+                    mask |= (meta >> 5) << (meta & 31);
+                }
+            }
+        }
+        i += 1;
+    }
+    mask
+}
+
+/// Stack traversal of obvhs's CWBVH (Ylitie, Karras, Laine 2017, Algorithm 1): a stack of
+/// node groups (child base index, hit bits) and one triangle group at a time.
+pub fn cwbvh_traverse(
+    triangles: &[Triangle],
+    nodes: &[CwBvhNode],
+    ray: &Ray,
+    t_max: f32,
+    any: bool,
+) -> Hit {
+    let tester = TriangleTester::new(ray);
+    let inv_dir = ray.dir.recip();
+    let mut hit = Hit::none(t_max);
+    if nodes.is_empty() {
+        return hit;
+    }
+    let oct = (ray.dir.x < 0.0) as u32 | (((ray.dir.y < 0.0) as u32) << 1) | (((ray.dir.z < 0.0) as u32) << 2);
+    let oct_inv = 7 - oct;
+    let mut stack_base = [0u32; CWBVH_STACK];
+    let mut stack_bits = [0u32; CWBVH_STACK];
+    let mut sp = 0usize;
+    // The root is the only "interior child" of a virtual group at node 0.
+    let mut group_base = 0u32;
+    let mut group_bits = 0x8000_0000u32;
+    loop {
+        let mut tri_base = 0u32;
+        let mut tri_bits = 0u32;
+        if group_bits & 0xff00_0000 != 0 {
+            let slot_bit = first_bit_high(group_bits);
+            group_bits &= !(1u32 << slot_bit);
+            // Interior children are stored contiguously in slot order: the node's index is
+            // the number of interior siblings (imask, low byte) in lower slots.
+            let slot = (slot_bit - 24) ^ oct_inv;
+            let relative = (group_bits & 0xff & !(0xffff_ffffu32 << slot)).count_ones();
+            let child = group_base + relative;
+            if group_bits & 0xff00_0000 != 0 {
+                if sp < CWBVH_STACK {
+                    stack_base[sp] = group_base;
+                    stack_bits[sp] = group_bits;
+                    sp += 1;
+                }
+            }
+            let node = nodes[child as usize];
+            let hits = cwbvh_node_hits(&node, ray.origin, inv_dir, oct_inv, hit.t);
+            group_base = node.child_base_idx;
+            group_bits = (hits & 0xff00_0000) | (node.e_imask >> 24);
+            tri_base = node.primitive_base_idx;
+            tri_bits = hits & 0x00ff_ffff;
+        }
+        while tri_bits != 0 {
+            let k = first_bit_high(tri_bits);
+            tri_bits &= !(1u32 << k);
+            if test_leaf(triangles, &tester, tri_base + k, 1, &mut hit, any) {
+                return hit;
+            }
+        }
+        if group_bits & 0xff00_0000 == 0 {
+            if sp == 0 {
+                break;
+            }
+            sp -= 1;
+            group_base = stack_base[sp];
+            group_bits = stack_bits[sp];
+        }
+    }
+    hit
+}
+
+/// Shading frame at a hit: position, unit geometric normal turned towards the incoming
+/// ray (surfaces are two-sided), and whether the ray hit the front (emitting) side.
+#[derive(Copy, Clone, Debug)]
+pub struct SurfaceHit {
+    pub p: Vec3,
+    pub n: Vec3,
+    pub front_face: bool,
+    pub prim: u32,
+}
+
+pub fn surface_hit(triangles: &[Triangle], ray: &Ray, hit: &Hit) -> SurfaceHit {
+    let tri = triangles[hit.prim as usize];
+    let ng = tri.normal();
+    let front_face = ng.dot(ray.dir) < 0.0;
+    SurfaceHit {
+        p: tri.point(hit.b1, hit.b2),
+        n: if front_face { ng } else { -ng },
+        front_face,
+        prim: hit.prim,
+    }
+}
+
+/// Move a ray origin off the surface along the normal by a few ulps of the position
+/// (Wächter & Binder, "A Fast and Robust Method for Avoiding Self-Intersection", Ray
+/// Tracing Gems ch. 6): no acne at any scene scale, and no leaks through thin walls.
+pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
+    Vec3::new(
+        offset_component(p.x, n.x),
+        offset_component(p.y, n.y),
+        offset_component(p.z, n.z),
+    )
+}
+
+fn offset_component(p: f32, n: f32) -> f32 {
+    const ORIGIN: f32 = 1.0 / 32.0;
+    const FLOAT_SCALE: f32 = 1.0 / 65536.0;
+    const INT_SCALE: f32 = 256.0;
+    if p.abs() < ORIGIN {
+        return p + FLOAT_SCALE * n;
+    }
+    let of_i = (INT_SCALE * n) as i32;
+    let bits = p.to_bits() as i32;
+    let moved = if p < 0.0 { bits - of_i } else { bits + of_i };
+    f32::from_bits(moved as u32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn offset_moves_to_the_normal_side_at_every_scale() {
+        let n = Vec3::new(0.3, -0.5, 0.8).normalize();
+        for scale in [1e-3f32, 1.0, 1e3, 1e5] {
+            let p = Vec3::new(0.7, -0.2, 0.4) * scale;
+            let q = offset_ray_origin(p, n);
+            assert!((q - p).dot(n) > 0.0, "scale {scale}");
+            assert!((q - p).length() < 1e-3 * scale.max(1.0), "scale {scale}");
+        }
+    }
+}

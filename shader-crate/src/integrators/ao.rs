@@ -1,0 +1,58 @@
+//! Ambient occlusion, the course's first integrator: the fraction of cosine-weighted
+//! directions around a visible point that escape within `ao_distance`.
+use crate::bvh::{offset_ray_origin, surface_hit, Scene};
+use crate::glam::Vec3;
+use crate::integrators::{accumulate_samples, PixelResult};
+use crate::intersect::Ray;
+use crate::rng::Rng;
+use crate::sampling::{cosine_hemisphere, local_to_world};
+use crate::types::FrameParams;
+
+/// Unoccluded fraction at `p` with normal `n`, from `rays` cosine-weighted rays of length
+/// `distance`. Cosine weighting makes this the cosine-weighted visibility integral
+/// (1/π) ∫ V(ω) cos θ dω estimated with equal weights.
+pub fn ambient_occlusion(
+    scene: &Scene,
+    p: Vec3,
+    n: Vec3,
+    rays: u32,
+    distance: f32,
+    rng: &mut Rng,
+) -> f32 {
+    let origin = offset_ray_origin(p, n);
+    let mut open = 0u32;
+    let mut i = 0;
+    while i < rays {
+        let local = cosine_hemisphere(rng.next_f32(), rng.next_f32());
+        let ray = Ray::new(origin, local_to_world(local, n));
+        if !scene.any_hit(&ray, distance) {
+            open += 1;
+        }
+        i += 1;
+    }
+    open as f32 / rays.max(1) as f32
+}
+
+/// One AO sample for a camera ray: 0 where the ray leaves the scene (no surface, no
+/// occlusion to speak of), the unoccluded fraction (grey) where it hits.
+pub fn ao_sample(scene: &Scene, params: &FrameParams, ray: Ray, rng: &mut Rng, rays: &mut u32) -> Vec3 {
+    let hit = scene.closest_hit(&ray, f32::INFINITY);
+    *rays += 1;
+    if !hit.is_hit() {
+        return Vec3::ZERO;
+    }
+    let s = surface_hit(scene.triangles, &ray, &hit);
+    *rays += params.ao_rays;
+    Vec3::splat(ambient_occlusion(
+        scene,
+        s.p,
+        s.n,
+        params.ao_rays,
+        params.ao_distance,
+        rng,
+    ))
+}
+
+pub fn render_pixel(scene: &Scene, params: &FrameParams, x: u32, y: u32) -> PixelResult {
+    accumulate_samples(params, x, y, |ray, rng, rays| ao_sample(scene, params, ray, rng, rays))
+}

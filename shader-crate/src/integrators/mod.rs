@@ -1,0 +1,52 @@
+//! Per-pixel integrators. Each `render_pixel` returns the *sum* of `params.samples`
+//! samples and the number of rays it traced; the caller adds the sum to the accumulation
+//! buffer (and divides by the total count at the end) and the rays to the statistics.
+pub mod ao;
+pub mod path;
+
+use crate::camera::primary_ray;
+use crate::glam::Vec3;
+use crate::intersect::Ray;
+use crate::rng::Rng;
+use crate::types::FrameParams;
+
+/// Sum of a pixel's samples and the rays traced for them.
+#[derive(Copy, Clone, Debug, Default)]
+pub struct PixelResult {
+    pub sum: Vec3,
+    pub rays: u32,
+}
+
+/// The sample loop shared by all integrators: sample `s` of pixel (x, y) draws the stream
+/// (pixel, frame, sample_offset + s, seed); its first two numbers jitter the position in
+/// the pixel, the rest belong to `radiance`, which also counts the rays it traces.
+/// Non-finite samples are dropped (counted as 0) so one bad path can never poison a pixel.
+pub fn accumulate_samples<F: Fn(Ray, &mut Rng, &mut u32) -> Vec3>(
+    params: &FrameParams,
+    x: u32,
+    y: u32,
+    radiance: F,
+) -> PixelResult {
+    let pixel = y * params.width + x;
+    let mut sum = Vec3::ZERO;
+    let mut rays = 0u32;
+    let mut s = 0;
+    while s < params.samples {
+        let mut rng = Rng::new(pixel, params.frame, params.sample_offset + s, params.seed);
+        let jx = rng.next_f32();
+        let jy = rng.next_f32();
+        let ray = primary_ray(
+            &params.camera,
+            params.width,
+            params.height,
+            x as f32 + jx,
+            y as f32 + jy,
+        );
+        let l = radiance(ray, &mut rng, &mut rays);
+        if l.is_finite() {
+            sum += l;
+        }
+        s += 1;
+    }
+    PixelResult { sum, rays }
+}

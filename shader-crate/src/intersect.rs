@@ -1,0 +1,280 @@
+//! Ray–triangle tests (watertight and Möller–Trumbore) and the ray–box slab test.
+use crate::glam::Vec3;
+use crate::math::{component, max_dimension};
+use crate::types::{Triangle, INVALID};
+
+#[derive(Copy, Clone, Debug)]
+pub struct Ray {
+    pub origin: Vec3,
+    pub dir: Vec3,
+}
+
+impl Ray {
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        Self { origin, dir }
+    }
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + self.dir * t
+    }
+}
+
+/// Closest hit so far: `prim == INVALID` means no hit, and then `t` is the search limit.
+/// Barycentrics (b1, b2) weight p1 and p2; p0 gets 1 - b1 - b2.
+#[derive(Copy, Clone, Debug)]
+pub struct Hit {
+    pub t: f32,
+    pub b1: f32,
+    pub b2: f32,
+    pub prim: u32,
+}
+
+impl Hit {
+    pub fn none(t_max: f32) -> Self {
+        Self {
+            t: t_max,
+            b1: 0.0,
+            b2: 0.0,
+            prim: INVALID,
+        }
+    }
+    pub fn is_hit(&self) -> bool {
+        self.prim != INVALID
+    }
+}
+
+/// Per-ray set-up of the watertight test (Woop, Benthin, Wald 2013, "Watertight
+/// Ray/Triangle Intersection"): permute axes so z is the ray's dominant axis and shear so
+/// the ray becomes +z. Done once per ray, reused for every triangle.
+#[derive(Copy, Clone, Debug)]
+pub struct WatertightRay {
+    pub origin: Vec3,
+    pub kx: u32,
+    pub ky: u32,
+    pub kz: u32,
+    pub shear: Vec3,
+}
+
+impl WatertightRay {
+    pub fn new(ray: &Ray) -> Self {
+        let kz = max_dimension(ray.dir.abs());
+        let mut kx = if kz == 2 { 0 } else { kz + 1 };
+        let mut ky = if kx == 2 { 0 } else { kx + 1 };
+        // Keep the winding: swap kx and ky when the dominant component is negative.
+        if component(ray.dir, kz) < 0.0 {
+            core::mem::swap(&mut kx, &mut ky);
+        }
+        let dz = component(ray.dir, kz);
+        let shear = Vec3::new(
+            component(ray.dir, kx) / dz,
+            component(ray.dir, ky) / dz,
+            1.0 / dz,
+        );
+        Self {
+            origin: ray.origin,
+            kx,
+            ky,
+            kz,
+            shear,
+        }
+    }
+
+    fn permute(&self, v: Vec3) -> Vec3 {
+        Vec3::new(
+            component(v, self.kx),
+            component(v, self.ky),
+            component(v, self.kz),
+        )
+    }
+}
+
+/// Watertight test: rays through shared edges and vertices of a closed mesh never slip
+/// between triangles, because the edge functions of both neighbours see bit-identical
+/// inputs. Returns (t, b1, b2) when t_min < t < t_max.
+pub fn intersect_watertight(
+    wr: &WatertightRay,
+    tri: &Triangle,
+    t_min: f32,
+    t_max: f32,
+) -> Option<(f32, f32, f32)> {
+    let (p0, p1, p2) = tri.vertices();
+    let a = wr.permute(p0 - wr.origin);
+    let b = wr.permute(p1 - wr.origin);
+    let c = wr.permute(p2 - wr.origin);
+    let s = wr.shear;
+    let ax = a.x - s.x * a.z;
+    let ay = a.y - s.y * a.z;
+    let bx = b.x - s.x * b.z;
+    let by = b.y - s.y * b.z;
+    let cx = c.x - s.x * c.z;
+    let cy = c.y - s.y * c.z;
+    // Scaled barycentrics: u weights p0, v weights p1, w weights p2.
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+        return None;
+    }
+    let det = u + v + w;
+    if det == 0.0 {
+        return None;
+    }
+    let t_scaled = u * (s.z * a.z) + v * (s.z * b.z) + w * (s.z * c.z);
+    let inv_det = 1.0 / det;
+    let t = t_scaled * inv_det;
+    if !(t > t_min && t < t_max) {
+        return None;
+    }
+    Some((t, v * inv_det, w * inv_det))
+}
+
+/// Möller & Trumbore 1997, "Fast, Minimum Storage Ray/Triangle Intersection". Faster set-up,
+/// but not watertight: rays through shared edges can miss both triangles.
+pub fn intersect_moller_trumbore(
+    ray: &Ray,
+    tri: &Triangle,
+    t_min: f32,
+    t_max: f32,
+) -> Option<(f32, f32, f32)> {
+    let (p0, p1, p2) = tri.vertices();
+    let e1 = p1 - p0;
+    let e2 = p2 - p0;
+    let pvec = ray.dir.cross(e2);
+    let det = e1.dot(pvec);
+    if det == 0.0 {
+        return None;
+    }
+    let inv_det = 1.0 / det;
+    let tvec = ray.origin - p0;
+    let b1 = tvec.dot(pvec) * inv_det;
+    if !(0.0..=1.0).contains(&b1) {
+        return None;
+    }
+    let qvec = tvec.cross(e1);
+    let b2 = ray.dir.dot(qvec) * inv_det;
+    if b2 < 0.0 || b1 + b2 > 1.0 {
+        return None;
+    }
+    let t = e2.dot(qvec) * inv_det;
+    if !(t > t_min && t < t_max) {
+        return None;
+    }
+    Some((t, b1, b2))
+}
+
+/// The triangle test the traversals use, picked by cargo feature.
+#[derive(Copy, Clone, Debug)]
+pub struct TriangleTester {
+    #[cfg(not(feature = "intersect-moller-trumbore"))]
+    wr: WatertightRay,
+    #[cfg(feature = "intersect-moller-trumbore")]
+    ray: Ray,
+}
+
+impl TriangleTester {
+    pub fn new(ray: &Ray) -> Self {
+        Self {
+            #[cfg(not(feature = "intersect-moller-trumbore"))]
+            wr: WatertightRay::new(ray),
+            #[cfg(feature = "intersect-moller-trumbore")]
+            ray: *ray,
+        }
+    }
+    pub fn intersect(&self, tri: &Triangle, t_min: f32, t_max: f32) -> Option<(f32, f32, f32)> {
+        #[cfg(not(feature = "intersect-moller-trumbore"))]
+        return intersect_watertight(&self.wr, tri, t_min, t_max);
+        #[cfg(feature = "intersect-moller-trumbore")]
+        return intersect_moller_trumbore(&self.ray, tri, t_min, t_max);
+    }
+}
+
+/// Slab test against an axis-aligned box, with the reciprocal direction precomputed.
+/// Returns the entry distance, or `f32::INFINITY` on a miss. Zero direction components
+/// give infinite reciprocals, which the slabs handle, unless the origin lies exactly on a
+/// slab plane (0 · ∞ = NaN): the BVH pads its boxes so that never decides a hit.
+pub fn intersect_aabb(origin: Vec3, inv_dir: Vec3, lo: Vec3, hi: Vec3, t_max: f32) -> f32 {
+    let t0 = (lo - origin) * inv_dir;
+    let t1 = (hi - origin) * inv_dir;
+    let t_near = t0.min(t1).max_element().max(0.0);
+    let t_far = t0.max(t1).min_element().min(t_max);
+    if t_near <= t_far {
+        t_near
+    } else {
+        f32::INFINITY
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri() -> Triangle {
+        Triangle::new(
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+            0,
+        )
+    }
+
+    fn both(ray: &Ray, t: &Triangle) -> [Option<(f32, f32, f32)>; 2] {
+        [
+            intersect_watertight(&WatertightRay::new(ray), t, 0.0, f32::INFINITY),
+            intersect_moller_trumbore(ray, t, 0.0, f32::INFINITY),
+        ]
+    }
+
+    #[test]
+    fn hit_with_known_t_and_barycentrics() {
+        let ray = Ray::new(Vec3::new(0.25, 0.5, 2.0), Vec3::new(0.0, 0.0, -1.0));
+        for h in both(&ray, &tri()) {
+            let (t, b1, b2) = h.expect("hit");
+            assert!((t - 2.0).abs() < 1e-6 && (b1 - 0.25).abs() < 1e-6 && (b2 - 0.5).abs() < 1e-6);
+        }
+        // From below and at a slant: t = |o - p| along a unit direction.
+        let target = Vec3::new(0.2, 0.3, 0.0);
+        let origin = Vec3::new(-1.0, 2.0, -3.0);
+        let d = (target - origin).normalize();
+        for h in both(&Ray::new(origin, d), &tri()) {
+            let (t, b1, b2) = h.expect("hit");
+            assert!((t - (target - origin).length()).abs() < 1e-5);
+            assert!((b1 - 0.2).abs() < 1e-5 && (b2 - 0.3).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn misses() {
+        let cases = [
+            // beside the triangle
+            Ray::new(Vec3::new(0.8, 0.8, 1.0), Vec3::new(0.0, 0.0, -1.0)),
+            // pointing away
+            Ray::new(Vec3::new(0.2, 0.2, 1.0), Vec3::new(0.0, 0.0, 1.0)),
+            // parallel to the plane
+            Ray::new(Vec3::new(-1.0, 0.2, 0.0), Vec3::new(1.0, 0.0, 0.0)),
+        ];
+        for ray in cases {
+            assert_eq!(both(&ray, &tri()), [None, None], "{ray:?}");
+        }
+        // Outside [t_min, t_max].
+        let ray = Ray::new(Vec3::new(0.2, 0.2, 1.0), Vec3::new(0.0, 0.0, -1.0));
+        assert!(intersect_watertight(&WatertightRay::new(&ray), &tri(), 0.0, 0.5).is_none());
+        assert!(intersect_moller_trumbore(&ray, &tri(), 1.5, 9.0).is_none());
+    }
+
+    #[test]
+    fn aabb_slab() {
+        let (lo, hi) = (Vec3::splat(-1.0), Vec3::splat(1.0));
+        let o = Vec3::new(-5.0, 0.0, 0.0);
+        let d = Vec3::new(1.0, 0.0, 0.0);
+        assert_eq!(intersect_aabb(o, d.recip(), lo, hi, 100.0), 4.0);
+        assert_eq!(intersect_aabb(o, d.recip(), lo, hi, 3.0), f32::INFINITY);
+        let o2 = Vec3::new(-5.0, 2.0, 0.0);
+        assert_eq!(intersect_aabb(o2, d.recip(), lo, hi, 100.0), f32::INFINITY);
+        // Origin inside: entry distance clamps to 0.
+        assert_eq!(intersect_aabb(Vec3::ZERO, d.recip(), lo, hi, 100.0), 0.0);
+        // Axis-parallel ray just inside a face plane, and just outside it.
+        let o3 = Vec3::new(-5.0, 0.999, 0.0);
+        assert_eq!(intersect_aabb(o3, d.recip(), lo, hi, 100.0), 4.0);
+        let o4 = Vec3::new(-5.0, 1.001, 0.0);
+        assert_eq!(intersect_aabb(o4, d.recip(), lo, hi, 100.0), f32::INFINITY);
+    }
+}

@@ -1,0 +1,91 @@
+//! Emitters: picking a light triangle (uniformly, as in the course, or in proportion to
+//! power with an alias table), a uniform point on it, and the pdfs that NEE and MIS need.
+use crate::bvh::Scene;
+use crate::glam::Vec3;
+use crate::sampling::uniform_triangle;
+use crate::types::{Light, LIGHT_SAMPLING_UNIFORM};
+
+/// A point on an emitter, with everything the estimators need.
+#[derive(Copy, Clone, Debug)]
+pub struct LightSample {
+    pub p: Vec3,
+    /// Unit front-face normal (the emitting side).
+    pub n: Vec3,
+    pub emission: Vec3,
+    /// Density of this point w.r.t. area: p(triangle) / area.
+    pub pdf_area: f32,
+    pub triangle: u32,
+}
+
+/// Index into `lights` for a uniform number `u`, by the chosen mode.
+pub fn select_light(lights: &[Light], mode: u32, u: f32) -> u32 {
+    let n = lights.len() as u32;
+    let scaled = u * n as f32;
+    let i = (scaled as u32).min(n - 1);
+    if mode == LIGHT_SAMPLING_UNIFORM {
+        return i;
+    }
+    // Alias method: one table lookup, O(1) whatever the number of lights.
+    let entry = lights[i as usize];
+    if scaled - (i as f32) < entry.threshold {
+        i
+    } else {
+        entry.alias
+    }
+}
+
+/// Probability that `select_light` picks light `index`.
+pub fn selection_pdf(lights: &[Light], mode: u32, index: u32) -> f32 {
+    if mode == LIGHT_SAMPLING_UNIFORM {
+        1.0 / lights.len() as f32
+    } else {
+        lights[index as usize].pdf
+    }
+}
+
+/// Pick a light triangle and a uniform point on it from three uniform numbers.
+pub fn sample_light(scene: &Scene, mode: u32, u0: f32, u1: f32, u2: f32) -> LightSample {
+    let index = select_light(scene.lights, mode, u0);
+    let triangle = scene.lights[index as usize].triangle;
+    let tri = scene.triangles[triangle as usize];
+    let (b1, b2) = uniform_triangle(u1, u2);
+    let cross = tri.cross();
+    let area = 0.5 * cross.length();
+    LightSample {
+        p: tri.point(b1, b2),
+        n: cross / (2.0 * area),
+        emission: scene.materials[tri.material as usize].emission(),
+        pdf_area: selection_pdf(scene.lights, mode, index) / area,
+        triangle,
+    }
+}
+
+/// Area density with which `sample_light` produces a point on `triangle` (an emitter).
+pub fn light_pdf_area(scene: &Scene, mode: u32, triangle: u32) -> f32 {
+    let tri = scene.triangles[triangle as usize];
+    selection_pdf(scene.lights, mode, tri.light) / tri.area()
+}
+
+/// The geometry term between a surface point (p, n) and a light point (q, nq):
+/// cos θ_p · cos θ_q / |p − q|², zero unless each faces the other (lights are one-sided).
+pub fn geometry_term(p: Vec3, n: Vec3, q: Vec3, nq: Vec3) -> f32 {
+    let d = q - p;
+    let dist2 = d.length_squared();
+    let w = d / crate::math::sqrt(dist2);
+    let cos_p = n.dot(w);
+    let cos_q = -nq.dot(w);
+    if cos_p <= 0.0 || cos_q <= 0.0 || dist2 == 0.0 {
+        return 0.0;
+    }
+    cos_p * cos_q / dist2
+}
+
+/// Veach's power heuristic (β = 2) for the strategy with density `a` against `b`.
+pub fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 == 0.0 {
+        0.0
+    } else {
+        a2 / (a2 + b2)
+    }
+}

@@ -1,0 +1,202 @@
+//! `#[repr(C)]` data shared by the host and the kernels. Only 4-byte scalars and arrays of
+//! them (no `Vec3`), so Rust's layout, std430 and rust-gpu's offsets agree; the host checks
+//! sizes with `const` asserts at the bottom.
+#[cfg(not(target_arch = "spirv"))]
+use bytemuck::{Pod, Zeroable};
+
+use crate::glam::Vec3;
+use crate::math::vec3;
+
+/// Marks "no triangle": a miss, or an empty slot.
+pub const INVALID: u32 = u32::MAX;
+
+/// One triangle: three vertices, the index of its material, and its index in the light
+/// table (`INVALID` unless its material emits).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
+pub struct Triangle {
+    pub p0: [f32; 3],
+    pub material: u32,
+    pub p1: [f32; 3],
+    pub light: u32,
+    pub p2: [f32; 3],
+    pub _pad: u32,
+}
+
+impl Triangle {
+    pub fn new(p0: Vec3, p1: Vec3, p2: Vec3, material: u32) -> Self {
+        Self {
+            p0: p0.to_array(),
+            material,
+            p1: p1.to_array(),
+            light: INVALID,
+            p2: p2.to_array(),
+            _pad: 0,
+        }
+    }
+    pub fn vertices(&self) -> (Vec3, Vec3, Vec3) {
+        (vec3(self.p0), vec3(self.p1), vec3(self.p2))
+    }
+    /// Unnormalised normal of the counter-clockwise winding; its length is twice the area.
+    pub fn cross(&self) -> Vec3 {
+        let (p0, p1, p2) = self.vertices();
+        (p1 - p0).cross(p2 - p0)
+    }
+    pub fn area(&self) -> f32 {
+        0.5 * self.cross().length()
+    }
+    pub fn normal(&self) -> Vec3 {
+        self.cross().normalize()
+    }
+    /// Point at barycentrics (b1, b2): (1 - b1 - b2) p0 + b1 p1 + b2 p2.
+    pub fn point(&self, b1: f32, b2: f32) -> Vec3 {
+        let (p0, p1, p2) = self.vertices();
+        p0 * (1.0 - b1 - b2) + p1 * b1 + p2 * b2
+    }
+}
+
+/// Lambertian albedo (`Kd`) and one-sided emitted radiance (`Ke`).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
+pub struct Material {
+    pub albedo: [f32; 3],
+    pub _pad0: f32,
+    pub emission: [f32; 3],
+    pub _pad1: f32,
+}
+
+impl Material {
+    pub fn new(albedo: Vec3, emission: Vec3) -> Self {
+        Self {
+            albedo: albedo.to_array(),
+            _pad0: 0.0,
+            emission: emission.to_array(),
+            _pad1: 0.0,
+        }
+    }
+    pub fn albedo(&self) -> Vec3 {
+        vec3(self.albedo)
+    }
+    pub fn emission(&self) -> Vec3 {
+        vec3(self.emission)
+    }
+    pub fn is_emissive(&self) -> bool {
+        self.emission[0] > 0.0 || self.emission[1] > 0.0 || self.emission[2] > 0.0
+    }
+}
+
+/// One emissive triangle in the light table, with its entry of the alias table that picks
+/// lights in proportion to their power (Walker/Vose): slot `i` keeps itself with
+/// probability `threshold`, else goes to `alias`. `pdf` is the probability that power
+/// sampling selects this light.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
+pub struct Light {
+    pub triangle: u32,
+    pub pdf: f32,
+    pub alias: u32,
+    pub threshold: f32,
+}
+
+/// How next-event estimation picks a light triangle.
+pub const LIGHT_SAMPLING_UNIFORM: u32 = 0;
+pub const LIGHT_SAMPLING_POWER: u32 = 1;
+
+/// Pinhole camera. `right` and `up` are pre-scaled by the half extent of the image plane
+/// at distance 1 (tan(fov/2) · aspect and tan(fov/2)), `forward` is unit length.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
+pub struct Camera {
+    pub eye: [f32; 3],
+    pub _pad0: f32,
+    pub forward: [f32; 3],
+    pub _pad1: f32,
+    pub right: [f32; 3],
+    pub _pad2: f32,
+    pub up: [f32; 3],
+    pub _pad3: f32,
+}
+
+/// Everything a kernel needs besides the scene buffers, for one pass over the image.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
+pub struct FrameParams {
+    pub camera: Camera,
+    /// Radiance returned by rays that leave the scene.
+    pub sky: [f32; 3],
+    pub width: u32,
+    pub height: u32,
+    /// Index of the frame in a sequence (ReSTIR); 0 for still renders.
+    pub frame: u32,
+    /// Global index of this pass's first sample: sample `s` of the pass draws the random
+    /// stream of sample `sample_offset + s`, so any split into passes gives the same image.
+    pub sample_offset: u32,
+    /// Samples per pixel taken in this pass.
+    pub samples: u32,
+    pub seed: u32,
+    pub ao_rays: u32,
+    pub ao_distance: f32,
+    /// Path segments, counted like Mitsuba's `max_depth`: 1 = emitters seen directly,
+    /// 2 = plus direct lighting, ...
+    pub max_depth: u32,
+    /// `LIGHT_SAMPLING_UNIFORM` (the course) or `LIGHT_SAMPLING_POWER`.
+    pub light_sampling: u32,
+    /// Russian roulette starts after this many segments.
+    pub rr_depth: u32,
+    /// RIS: light candidates per pixel.
+    pub candidates: u32,
+    pub _pad: u32,
+}
+
+#[cfg(not(target_arch = "spirv"))]
+const _: () = {
+    assert!(core::mem::size_of::<Triangle>() == 48);
+    assert!(core::mem::size_of::<Material>() == 32);
+    assert!(core::mem::size_of::<Camera>() == 64);
+    assert!(core::mem::size_of::<FrameParams>() == 128);
+    assert!(core::mem::size_of::<Light>() == 16);
+    assert!(core::mem::size_of::<FrameParams>() % 16 == 0);
+};
+
+/// Binary BVH node, 32 bytes. Interior: `count == 0` and the children are nodes `first` and
+/// `first + 1`. Leaf: triangles `first .. first + count` (triangles are stored in leaf order).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
+pub struct Bvh2Node {
+    pub lo: [f32; 3],
+    pub first: u32,
+    pub hi: [f32; 3],
+    pub count: u32,
+}
+
+/// obvhs's compressed 8-wide node (Ylitie et al. 2017), 80 bytes, byte-identical to
+/// `obvhs::cwbvh::node::CwBvhNode` but read as 32-bit words so SPIR-V needs no 8-bit types:
+/// `e_imask` packs the three exponent bytes and `imask`; the byte arrays are pairs of words.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
+pub struct CwBvhNode {
+    pub p: [f32; 3],
+    pub e_imask: u32,
+    pub child_base_idx: u32,
+    pub primitive_base_idx: u32,
+    pub child_meta: [u32; 2],
+    pub child_min_x: [u32; 2],
+    pub child_max_x: [u32; 2],
+    pub child_min_y: [u32; 2],
+    pub child_max_y: [u32; 2],
+    pub child_min_z: [u32; 2],
+    pub child_max_z: [u32; 2],
+}
+
+#[cfg(not(target_arch = "spirv"))]
+const _: () = {
+    assert!(core::mem::size_of::<Bvh2Node>() == 32);
+    assert!(core::mem::size_of::<CwBvhNode>() == 80);
+};

@@ -1,0 +1,82 @@
+//! Ambient occlusion against analytic values.
+mod common;
+
+use common::{grey, quad, z_score};
+use glam::Vec3;
+use runner::scene::Scene;
+use kernels::integrators::ao::ambient_occlusion;
+use kernels::rng::Rng;
+use kernels::types::Triangle;
+
+const BIG: f32 = 1.0e4;
+
+fn floor() -> Vec<Triangle> {
+    quad(
+        [
+            Vec3::new(-BIG, -BIG, 0.0),
+            Vec3::new(BIG, -BIG, 0.0),
+            Vec3::new(BIG, BIG, 0.0),
+            Vec3::new(-BIG, BIG, 0.0),
+        ],
+        0,
+    )
+    .to_vec()
+}
+
+/// The wall x = 0, facing +x, standing on the floor.
+fn wall() -> Vec<Triangle> {
+    quad(
+        [
+            Vec3::new(0.0, -BIG, 0.0),
+            Vec3::new(0.0, BIG, 0.0),
+            Vec3::new(0.0, BIG, BIG),
+            Vec3::new(0.0, -BIG, BIG),
+        ],
+        0,
+    )
+    .to_vec()
+}
+
+#[test]
+fn open_plane_is_fully_unoccluded() {
+    let scene = Scene::new(floor(), vec![grey(0.5)]).unwrap();
+    let scene = scene.kernel();
+    let mut rng = Rng::from_seed(1);
+    for p in [Vec3::ZERO, Vec3::new(123.0, -45.0, 0.0), Vec3::new(-9000.0, 9000.0, 0.0)] {
+        let v = ambient_occlusion(&scene, p, Vec3::Z, 10_000, f32::INFINITY, &mut rng);
+        assert_eq!(v, 1.0, "at {p}");
+    }
+}
+
+/// Point on the floor at distance d from the wall, AO rays of length D. Cosine-weighted
+/// directions project uniformly onto the unit disk, and a ray hits the wall within D iff
+/// its x component is below -d/D: the occluded fraction is the disk segment beyond
+/// a = d/D, (acos a - a sqrt(1 - a²)) / π.
+fn corner_unoccluded(d: f32, distance: f32) -> f64 {
+    let a = (d / distance).min(1.0) as f64;
+    1.0 - (a.acos() - a * (1.0 - a * a).sqrt()) / std::f64::consts::PI
+}
+
+#[test]
+fn corner_of_two_planes_matches_the_analytic_value() {
+    let mut tris = floor();
+    tris.extend(wall());
+    let scene = Scene::new(tris, vec![grey(0.5)]).unwrap();
+    let scene = scene.kernel();
+    let rays = 200_000u32;
+    for (i, (d, distance)) in [(0.0, 1.0), (0.25, 1.0), (0.5, 1.0), (0.9, 1.0), (2.0, 5.0), (3.0, 1.0)]
+        .into_iter()
+        .enumerate()
+    {
+        let mut rng = Rng::from_seed(100 + i as u32);
+        let p = Vec3::new(d.max(1e-4), 0.0, 0.0);
+        let got = ambient_occlusion(&scene, p, Vec3::Z, rays, distance, &mut rng) as f64;
+        let want = corner_unoccluded(p.x, distance);
+        // Binomial standard error of a fraction over `rays` rays; floor it for p ∈ {0, 1}.
+        let se = (want * (1.0 - want) / rays as f64).sqrt().max(1e-6);
+        assert!(
+            z_score(got, want, se) < 5.0 || (got - want).abs() < 1e-5,
+            "d = {d}, D = {distance}: got {got}, expected {want} (se {se})"
+        );
+    }
+}

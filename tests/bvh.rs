@@ -1,0 +1,141 @@
+//! BVH2 and CWBVH traversals against brute force: same closest triangle and t, same
+//! any-hit answers, for random rays and for the awkward ones (axis-parallel, starting on a
+//! surface, aimed at shared edges and vertices).
+mod common;
+
+use common::{closed_box, icosphere};
+use glam::Vec3;
+use kernels::bvh::{brute_force_any_hit, brute_force_closest_hit, bvh2_traverse, cwbvh_traverse};
+use kernels::intersect::{Hit, Ray};
+use kernels::rng::Rng;
+use kernels::types::Triangle;
+use runner::accel::{build_bvh2, build_cwbvh, reorder};
+use runner::setup::default_scene_path;
+
+fn uniform_dir(rng: &mut Rng) -> Vec3 {
+    let z = 1.0 - 2.0 * rng.next_f32();
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * std::f32::consts::PI * rng.next_f32();
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// The kinds of ray each scene is probed with.
+fn make_ray(i: u32, tris: &[Triangle], lo: Vec3, hi: Vec3, rng: &mut Rng) -> Ray {
+    let size = hi - lo;
+    let inside = lo - 0.1 * size + 1.2 * size * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+    let tri = tris[(rng.next_u32() % tris.len() as u32) as usize];
+    let (p0, p1, p2) = tri.vertices();
+    match i % 5 {
+        0 => Ray::new(inside, uniform_dir(rng)),
+        // axis-parallel: two zero direction components
+        1 => {
+            let mut d = Vec3::ZERO;
+            let axis = (rng.next_u32() % 3) as usize;
+            d[axis] = if rng.next_f32() < 0.5 { 1.0 } else { -1.0 };
+            Ray::new(inside, d)
+        }
+        // aimed at a point on a shared edge
+        2 => {
+            let target = p0.lerp(p1, rng.next_f32());
+            Ray::new(inside, (target - inside).normalize())
+        }
+        // aimed at a vertex
+        3 => Ray::new(inside, (p2 - inside).normalize()),
+        // starting on a surface, in any direction (also along the surface when axis-aligned)
+        _ => {
+            let (b1, b2) = kernels::sampling::uniform_triangle(rng.next_f32(), rng.next_f32());
+            let d = if rng.next_f32() < 0.3 {
+                let mut d = Vec3::ZERO;
+                d[(rng.next_u32() % 3) as usize] = 1.0;
+                d
+            } else {
+                uniform_dir(rng)
+            };
+            Ray::new(tri.point(b1, b2), d)
+        }
+    }
+}
+
+/// Compare a traversal's hit (prim in leaf order, mapped back through `order`) with brute
+/// force over the original triangles.
+fn check(name: &str, tris: &[Triangle], ray: &Ray, want: &Hit, got: &Hit, order: &[u32]) {
+    assert_eq!(want.is_hit(), got.is_hit(), "{name}: hit/miss differs for {ray:?}: {want:?} vs {got:?}");
+    if !want.is_hit() {
+        return;
+    }
+    assert!(
+        (want.t - got.t).abs() <= 1e-5 * want.t.abs().max(1e-3),
+        "{name}: t {} vs {} for {ray:?}",
+        want.t,
+        got.t
+    );
+    let got_prim = order[got.prim as usize];
+    if got_prim != want.prim {
+        // A tie: the ray passes through an edge or vertex shared by both triangles.
+        let alt = brute_force_closest_hit(&tris[got_prim as usize..=got_prim as usize], ray, f32::INFINITY);
+        assert!(alt.is_hit() && alt.t == want.t, "{name}: triangle {got_prim} vs {} for {ray:?}", want.prim);
+    }
+}
+
+fn agree_with_brute_force(tris: &[Triangle], rays: u32, seed: u32) {
+    let b2 = build_bvh2(tris);
+    let cw = build_cwbvh(tris);
+    let (t2, tc) = (reorder(tris, &b2.order), reorder(tris, &cw.order));
+    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    for t in tris {
+        let (a, b, c) = t.vertices();
+        lo = lo.min(a).min(b).min(c);
+        hi = hi.max(a).max(b).max(c);
+    }
+    let mut rng = Rng::from_seed(seed);
+    let mut hits = 0;
+    for i in 0..rays {
+        let ray = make_ray(i, tris, lo, hi, &mut rng);
+        let want = brute_force_closest_hit(tris, &ray, f32::INFINITY);
+        hits += want.is_hit() as u32;
+        check("bvh2", tris, &ray, &want, &bvh2_traverse(&t2, &b2.nodes, &ray, f32::INFINITY, false), &b2.order);
+        check("cwbvh", tris, &ray, &want, &cwbvh_traverse(&tc, &cw.nodes, &ray, f32::INFINITY, false), &cw.order);
+        // Any-hit with a limit around the closest hit: blocked iff something is nearer.
+        let limit = if want.is_hit() { want.t * (0.5 + rng.next_f32()) } else { 1e30 };
+        let blocked = brute_force_any_hit(tris, &ray, limit);
+        assert_eq!(bvh2_traverse(&t2, &b2.nodes, &ray, limit, true).is_hit(), blocked, "bvh2 any-hit {ray:?} {limit}");
+        assert_eq!(cwbvh_traverse(&tc, &cw.nodes, &ray, limit, true).is_hit(), blocked, "cwbvh any-hit {ray:?} {limit}");
+    }
+    // The probe must actually exercise hits, not only misses.
+    assert!(hits > rays / 4, "only {hits} of {rays} rays hit");
+}
+
+#[test]
+fn cornell_box() {
+    let scene = runner::scene::load_obj(&default_scene_path()).unwrap();
+    agree_with_brute_force(&scene.triangles, 25_000, 1);
+}
+
+#[test]
+fn spheres_in_a_box() {
+    let mut tris = closed_box(Vec3::splat(-4.0), Vec3::splat(4.0), 0);
+    for (i, c) in [Vec3::ZERO, Vec3::new(2.0, 1.0, -1.5), Vec3::new(-2.5, -2.0, 2.0)].iter().enumerate() {
+        tris.extend(icosphere(*c, 1.0 + 0.3 * i as f32, 3, 0));
+    }
+    agree_with_brute_force(&tris, 25_000, 2);
+}
+
+#[test]
+fn random_triangle_soup() {
+    // Overlapping, intersecting, long and thin triangles: the worst case for box quality.
+    let mut rng = Rng::from_seed(3);
+    let mut p = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 20.0 - 10.0;
+    let tris: Vec<Triangle> = (0..3000)
+        .map(|_| {
+            let a = p();
+            Triangle::new(a, a + 0.2 * p(), a + 0.2 * p(), 0)
+        })
+        .collect();
+    agree_with_brute_force(&tris, 25_000, 3);
+}
+
+#[test]
+fn single_triangle_scene() {
+    let tris = vec![Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y, 0)];
+    agree_with_brute_force(&tris, 5_000, 4);
+}

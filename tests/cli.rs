@@ -1,0 +1,97 @@
+//! The real `runner` binary: help, the default render, and clean failures.
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn runner(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_runner"))
+        .args(args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("runner binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn out_path(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+#[test]
+fn help_explains_the_commands_and_flags() {
+    let o = runner(&["--help"]);
+    assert!(o.status.success());
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("render"), "{text}");
+    let o = runner(&["render", "--help"]);
+    assert!(o.status.success());
+    let text = String::from_utf8_lossy(&o.stdout);
+    for flag in ["--scene", "--integrator", "--width", "--height", "--spp", "--eye", "--target",
+                 "--up", "--fov", "--ao-rays", "--ao-distance", "--backend", "--seed", "--out"] {
+        assert!(text.contains(flag), "render --help lacks {flag}:\n{text}");
+    }
+}
+
+/// Load a PNG as linear-ish grey values in [0, 1].
+fn grey_values(path: &PathBuf) -> (u32, u32, Vec<f32>) {
+    let img = image::open(path).expect("valid image").to_rgb8();
+    let v = img.pixels().map(|p| p.0.iter().map(|&c| c as f32).sum::<f32>() / 765.0).collect();
+    (img.width(), img.height(), v)
+}
+
+#[test]
+fn default_render_writes_a_non_trivial_image() {
+    for backend in ["cpu", "auto"] {
+        let out = out_path(&format!("default_{backend}.png"));
+        let _ = std::fs::remove_file(&out);
+        let o = runner(&["render", "--width", "96", "--height", "64", "--spp", "2",
+                         "--backend", backend, "--out", out.to_str().unwrap()]);
+        assert!(o.status.success(), "{backend}: {}", stderr(&o));
+        let (w, h, v) = grey_values(&out);
+        assert_eq!((w, h), (96, 64));
+        let mean = v.iter().sum::<f32>() / v.len() as f32;
+        let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f32>() / v.len() as f32;
+        // The Cornell box under AO: mostly open surfaces (bright), darker corners.
+        assert!(mean > 0.3 && mean < 0.95, "{backend}: mean {mean}");
+        assert!(var.sqrt() > 0.05, "{backend}: flat image, std {}", var.sqrt());
+    }
+}
+
+#[test]
+fn exr_output_keeps_linear_values() {
+    let out = out_path("ao.exr");
+    let o = runner(&["render", "--width", "32", "--height", "32", "--spp", "1",
+                     "--backend", "cpu", "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = image::open(&out).expect("valid EXR").to_rgb32f();
+    assert_eq!(img.dimensions(), (32, 32));
+    // AO values are fractions k / ao_rays averaged: inside [0, 1], some strictly between.
+    assert!(img.pixels().all(|p| p.0.iter().all(|&c| (0.0..=1.0).contains(&c))));
+    assert!(img.pixels().any(|p| p.0[0] > 0.0 && p.0[0] < 1.0));
+}
+
+#[test]
+fn bad_input_fails_with_one_clear_line() {
+    let cases: &[(&[&str], &str)] = &[
+        (&["render", "--no-such-flag"], "--no-such-flag"),
+        (&["render", "--scene", "/nonexistent/scene.obj", "--backend", "cpu"], "cannot read scene"),
+        (&["render", "--out", "image.bmp", "--backend", "cpu"], "unknown image format"),
+        (&["render", "--out", "/nonexistent-dir/x.png", "--backend", "cpu"], "does not exist"),
+        (&["render", "--width", "0", "--backend", "cpu"], "at least 1x1"),
+        (&["render", "--fov", "180", "--backend", "cpu"], "--fov"),
+        (&["render", "--eye", "1,2,3", "--target", "1,2,3", "--backend", "cpu"], "same point"),
+        (&["render", "--up", "0,0,1", "--eye", "0,0,0", "--target", "0,0,5", "--backend", "cpu"], "parallel"),
+        (&["render", "--spp", "0", "--backend", "cpu"], "--spp"),
+        (&["render", "--integrator", "nope"], "nope"),
+    ];
+    for (args, needle) in cases {
+        let o = runner(args);
+        let err = stderr(&o);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        assert!(err.contains(needle), "{args:?}: stderr lacks '{needle}':\n{err}");
+        assert!(!err.contains("panicked"), "{args:?} panicked:\n{err}");
+    }
+}

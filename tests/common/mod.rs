@@ -1,0 +1,32 @@
+//! Scene builders and statistics helpers shared by the integration tests.
+#![allow(dead_code)]
+use glam::Vec3;
+use kernels::types::{Material, Triangle};
+
+pub use runner::generate::{closed_box, icosphere, quad};
+
+pub fn grey(albedo: f32) -> Material {
+    Material::new(Vec3::splat(albedo), Vec3::ZERO)
+}
+
+/// Number of standard errors between an estimate and its expectation.
+pub fn z_score(estimate: f64, expected: f64, std_error: f64) -> f64 {
+    (estimate - expected).abs() / std_error
+}
+
+/// Pearson's χ² statistic of observed counts against expected counts.
+pub fn chi_square(observed: &[u64], expected: &[f64]) -> f64 {
+    observed
+        .iter()
+        .zip(expected)
+        .map(|(&o, &e)| (o as f64 - e).powi(2) / e)
+        .sum()
+}
+
+/// Upper critical value of χ² with `dof` degrees of freedom at significance 1e-4
+/// (Wilson–Hilferty approximation; z = 3.719).
+pub fn chi_square_critical(dof: usize) -> f64 {
+    let k = dof as f64;
+    let z = 3.719;
+    k * (1.0 - 2.0 / (9.0 * k) + z * (2.0 / (9.0 * k)).sqrt()).powi(3)
+}
