@@ -21,7 +21,8 @@ fn uniform_dir(rng: &mut Rng) -> Vec3 {
 
 /// The kinds of ray each scene is probed with.
 fn make_ray(i: u32, tris: &[Triangle], lo: Vec3, hi: Vec3, rng: &mut Rng) -> Ray {
-    let size = hi - lo;
+    // Give flat scenes a probe volume with thickness.
+    let size = (hi - lo).max(Vec3::splat(0.5 * (hi - lo).length()));
     let inside = lo - 0.1 * size + 1.2 * size * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
     let tri = tris[(rng.next_u32() % tris.len() as u32) as usize];
     let (p0, p1, p2) = tri.vertices();

@@ -118,13 +118,37 @@ pub fn intersect_watertight(
     if det == 0.0 {
         return None;
     }
-    let t_scaled = u * (s.z * a.z) + v * (s.z * b.z) + w * (s.z * c.z);
+    let (az, bz, cz) = (s.z * a.z, s.z * b.z, s.z * c.z);
+    let t_scaled = u * az + v * bz + w * cz;
     let inv_det = 1.0 / det;
     let t = t_scaled * inv_det;
     if !(t > t_min && t < t_max) {
         return None;
     }
+    // The rounding error of t grows with the triangle's extent, not with the hit point's
+    // position, so a large triangle can be "hit" just behind a ray origin that was offset
+    // off its surface. Reject t within its error bound (Pharr, Jakob, Humphreys, PBRT 3rd
+    // ed., §3.9.6): then t > 0 is certain.
+    let max_zt = az.abs().max(bz.abs()).max(cz.abs());
+    let max_xt = ax.abs().max(bx.abs()).max(cx.abs());
+    let max_yt = ay.abs().max(by.abs()).max(cy.abs());
+    let delta_z = gamma(3) * max_zt;
+    let delta_x = gamma(5) * (max_xt + max_zt);
+    let delta_y = gamma(5) * (max_yt + max_zt);
+    let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+    let max_e = u.abs().max(v.abs()).max(w.abs());
+    let delta_t =
+        3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
+    if t <= delta_t {
+        return None;
+    }
     Some((t, v * inv_det, w * inv_det))
+}
+
+/// Bound on the relative error of n chained float operations: nε / (1 − nε), ε = 2⁻²⁴.
+fn gamma(n: u32) -> f32 {
+    let e = n as f32 * (f32::EPSILON * 0.5);
+    e / (1.0 - e)
 }
 
 /// Möller & Trumbore 1997, "Fast, Minimum Storage Ray/Triangle Intersection". Faster set-up,

@@ -1,8 +1,9 @@
 //! Scene builders and statistics helpers shared by the integration tests.
 #![allow(dead_code)]
 use glam::Vec3;
-use kernels::types::{Material, Triangle};
+use kernels::types::Material;
 
+#[allow(unused_imports)]
 pub use runner::generate::{closed_box, icosphere, quad};
 
 pub fn grey(albedo: f32) -> Material {
