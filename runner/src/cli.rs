@@ -27,6 +27,8 @@ pub enum Command {
     Bench(BenchArgs),
     /// Write a built-in scene (many-lights, rocks-<N>) as OBJ + MTL
     Generate(GenerateArgs),
+    /// Compare an image with a reference: RMSE, relMSE, identical pixels
+    Compare(CompareArgs),
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, ValueEnum)]
@@ -150,6 +152,14 @@ pub struct GenerateArgs {
     /// Output OBJ file; the MTL file is written next to it
     #[arg(long, value_name = "FILE.obj")]
     pub out: PathBuf,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct CompareArgs {
+    /// The image to judge (.exr keeps linear values; .png is decoded from sRGB)
+    pub image: PathBuf,
+    /// The reference image, same size
+    pub reference: PathBuf,
 }
 
 /// Parse "X,Y,Z" into a vector of finite numbers.

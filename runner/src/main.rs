@@ -1,7 +1,7 @@
 use std::process::ExitCode;
 
 use clap::Parser;
-use runner::cli::{Cli, Command, GenerateArgs, RenderArgs};
+use runner::cli::{Cli, Command, CompareArgs, GenerateArgs, RenderArgs};
 use runner::error::{Context, Result};
 use runner::output::{check_writable, write_image};
 use runner::render::{open_backend, render};
@@ -15,6 +15,7 @@ fn main() -> ExitCode {
             println!("{}", if args.json { r.json() } else { r.table() });
         }),
         Command::Generate(args) => generate_command(&args),
+        Command::Compare(args) => compare_command(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -74,5 +75,21 @@ fn generate_command(args: &GenerateArgs) -> Result<()> {
     std::fs::write(&args.out, obj).context(|| format!("cannot write '{}'", args.out.display()))?;
     std::fs::write(&mtl_path, mtl).context(|| format!("cannot write '{}'", mtl_path.display()))?;
     eprintln!("wrote {} and {} ({} triangles)", args.out.display(), mtl_path.display(), generated.triangles.len());
+    Ok(())
+}
+
+fn compare_command(args: &CompareArgs) -> Result<()> {
+    let image = runner::output::read_image(&args.image)?;
+    let reference = runner::output::read_image(&args.reference)?;
+    let e = runner::output::compare(&image, &reference)?;
+    println!(
+        "rmse {:.6}  relmse {:.6}  max_abs {:.6}  identical {:.2}%  (mean {:.5} vs {:.5})",
+        e.rmse,
+        e.rel_mse,
+        e.max_abs,
+        100.0 * e.identical,
+        image.mean().dot(glam::Vec3::splat(1.0 / 3.0)),
+        reference.mean().dot(glam::Vec3::splat(1.0 / 3.0)),
+    );
     Ok(())
 }

@@ -102,3 +102,72 @@ pub fn write_image(path: &Path, image: &Image) -> Result<()> {
         }
     }
 }
+
+/// Read a PNG (sRGB-decoded) or EXR (linear) image.
+pub fn read_image(path: &Path) -> Result<Image> {
+    let format = output_format(path)?;
+    let img = image::open(path).context(|| format!("cannot read image '{}'", path.display()))?;
+    let rgb = img.to_rgb32f();
+    let decode = |x: f32| match format {
+        // `image` converts 8-bit PNG to float without undoing the sRGB curve.
+        OutputFormat::Png => srgb_to_linear(x),
+        OutputFormat::Exr => x,
+    };
+    Ok(Image {
+        width: rgb.width(),
+        height: rgb.height(),
+        pixels: rgb.pixels().map(|p| Vec3::new(decode(p[0]), decode(p[1]), decode(p[2]))).collect(),
+    })
+}
+
+pub fn srgb_to_linear(x: f32) -> f32 {
+    if x <= 0.040_45 {
+        x / 12.92
+    } else {
+        ((x + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Error of an image against a reference.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImageError {
+    pub rmse: f64,
+    /// Mean over pixels and channels of (x − ref)² / (ref² + 0.01): the relative MSE used
+    /// in rendering papers, stable where the reference is dark.
+    pub rel_mse: f64,
+    pub max_abs: f64,
+    /// Fraction of pixels equal to the reference within 1e-4 relative.
+    pub identical: f64,
+}
+
+pub fn compare(image: &Image, reference: &Image) -> Result<ImageError> {
+    if (image.width, image.height) != (reference.width, reference.height) {
+        bail!(
+            "images differ in size: {}x{} vs {}x{}",
+            image.width,
+            image.height,
+            reference.width,
+            reference.height
+        );
+    }
+    let (mut se, mut rel, mut max_abs, mut same) = (0.0f64, 0.0f64, 0.0f64, 0usize);
+    for (a, b) in image.pixels.iter().zip(&reference.pixels) {
+        let d = (*a - *b).abs();
+        if d.max_element() <= 1e-4 * b.abs().max_element().max(1.0) {
+            same += 1;
+        }
+        for c in 0..3 {
+            let (x, r) = (a[c] as f64, b[c] as f64);
+            se += (x - r).powi(2);
+            rel += (x - r).powi(2) / (r * r + 0.01);
+            max_abs = max_abs.max((x - r).abs());
+        }
+    }
+    let n = image.pixels.len().max(1) as f64;
+    Ok(ImageError {
+        rmse: (se / (3.0 * n)).sqrt(),
+        rel_mse: rel / (3.0 * n),
+        max_abs,
+        identical: same as f64 / n,
+    })
+}

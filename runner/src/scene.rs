@@ -105,15 +105,36 @@ fn is_proper(t: &Triangle) -> bool {
     a.is_finite() && a > 0.0
 }
 
-/// Load an OBJ file (and the MTL files it names).
+/// The default scene, built into the binary so it works wherever the binary runs.
+pub const CORNELL_BOX_OBJ: &str = include_str!("../../assets/cornell_box.obj");
+const CORNELL_BOX_MTL: &str = include_str!("../../assets/cornell_box.mtl");
+
+/// The built-in Cornell box (assets/cornell_box.obj).
+pub fn cornell_box() -> Result<Scene> {
+    parse_obj("cornell-box", CORNELL_BOX_OBJ, |_| {
+        tobj::load_mtl_buf(&mut CORNELL_BOX_MTL.as_bytes())
+    })
+}
+
+/// Load an OBJ file (and the MTL files it names, relative to it).
 pub fn load_obj(path: &Path) -> Result<Scene> {
-    let text = match std::fs::read(path) {
+    let bytes = match std::fs::read(path) {
         Ok(bytes) => bytes,
         Err(e) => bail!("cannot read scene '{}': {e}", path.display()),
     };
-    let text = String::from_utf8_lossy(&text);
-    check_vertices(path, &text)?;
-    let camera = parse_camera_hint(path, &text)?;
+    let text = String::from_utf8_lossy(&bytes);
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    parse_obj(&path.display().to_string(), &text, |mtl| tobj::load_mtl(dir.join(mtl)))
+}
+
+/// Parse OBJ text named `name` (for messages); `load_mtl` resolves `mtllib` names.
+fn parse_obj(
+    name: &str,
+    text: &str,
+    load_mtl: impl Fn(&Path) -> tobj::MTLLoadResult,
+) -> Result<Scene> {
+    check_vertices(name, text)?;
+    let camera = parse_camera_hint(name, text)?;
 
     let options = tobj::LoadOptions {
         triangulate: true,
@@ -122,16 +143,15 @@ pub fn load_obj(path: &Path) -> Result<Scene> {
         ignore_lines: true,
         ..Default::default()
     };
-    let (models, mtl_result) = tobj::load_obj(path, &options)
-        .map_err(|e| Error(format!("cannot load scene '{}': {e}", path.display())))?;
+    let (models, mtl_result) = tobj::load_obj_buf(&mut text.as_bytes(), &options, load_mtl)
+        .map_err(|e| Error(format!("cannot load scene '{name}': {e}")))?;
     let mut warnings = Vec::new();
     let mut materials: Vec<Material> = match mtl_result {
         Ok(mtls) => mtls.iter().map(material_from_mtl).collect(),
         Err(e) => {
             if models.iter().any(|m| m.mesh.material_id.is_some()) || text.contains("mtllib") {
                 warnings.push(format!(
-                    "materials of '{}' could not be loaded ({e}); using a grey default",
-                    path.display()
+                    "materials of '{name}' could not be loaded ({e}); using a grey default"
                 ));
             }
             Vec::new()
@@ -153,8 +173,7 @@ pub fn load_obj(path: &Path) -> Result<Scene> {
             match mesh.positions.get(3 * i..3 * i + 3) {
                 Some(p) => Ok(Vec3::new(p[0], p[1], p[2])),
                 None => bail!(
-                    "scene '{}': face index {} is out of range ({} vertices)",
-                    path.display(),
+                    "scene '{name}': face index {} is out of range ({} vertices)",
                     i + 1,
                     mesh.positions.len() / 3
                 ),
@@ -169,8 +188,8 @@ pub fn load_obj(path: &Path) -> Result<Scene> {
             ));
         }
     }
-    let mut scene = Scene::new(triangles, materials)
-        .map_err(|e| Error(format!("scene '{}': {e}", path.display())))?;
+    let mut scene =
+        Scene::new(triangles, materials).map_err(|e| Error(format!("scene '{name}': {e}")))?;
     warnings.append(&mut scene.warnings);
     scene.warnings = warnings;
     scene.camera = camera;
@@ -185,7 +204,7 @@ fn material_from_mtl(m: &tobj::Material) -> Material {
 
 /// Reject vertex lines with non-finite coordinates, naming the line: tobj would accept
 /// "nan" and "inf" and the renderer would silently produce garbage.
-fn check_vertices(path: &Path, text: &str) -> Result<()> {
+fn check_vertices(name: &str, text: &str) -> Result<()> {
     for (i, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
         if words.next() != Some("v") {
@@ -194,12 +213,8 @@ fn check_vertices(path: &Path, text: &str) -> Result<()> {
         for w in words.take(3) {
             match w.parse::<f32>() {
                 Ok(x) if x.is_finite() => {}
-                Ok(_) => bail!(
-                    "{}:{}: vertex coordinate '{w}' is not a finite number",
-                    path.display(),
-                    i + 1
-                ),
-                Err(_) => bail!("{}:{}: bad vertex coordinate '{w}'", path.display(), i + 1),
+                Ok(_) => bail!("{name}:{}: vertex coordinate '{w}' is not a finite number", i + 1),
+                Err(_) => bail!("{name}:{}: bad vertex coordinate '{w}'", i + 1),
             }
         }
     }
@@ -207,7 +222,7 @@ fn check_vertices(path: &Path, text: &str) -> Result<()> {
 }
 
 /// Parse `# camera: eye=X,Y,Z target=X,Y,Z up=X,Y,Z fov=DEG` if the file has one.
-fn parse_camera_hint(path: &Path, text: &str) -> Result<Option<CameraHint>> {
+fn parse_camera_hint(name: &str, text: &str) -> Result<Option<CameraHint>> {
     let Some((n, line)) = text
         .lines()
         .enumerate()
@@ -215,7 +230,7 @@ fn parse_camera_hint(path: &Path, text: &str) -> Result<Option<CameraHint>> {
     else {
         return Ok(None);
     };
-    let bad = || Error(format!("{}:{}: bad camera line '{line}'", path.display(), n + 1));
+    let bad = || Error(format!("{name}:{}: bad camera line '{line}'", n + 1));
     let mut hint = CameraHint {
         eye: Vec3::ZERO,
         target: Vec3::Z,

@@ -10,7 +10,7 @@ use crate::cli::{Integrator, KernelArgs, LightSampling, SceneArgs};
 use crate::error::Result;
 use crate::scene::{load_obj, Scene};
 
-/// The scene rendered when `--scene` is not given.
+/// The Cornell box in the source tree (tests load it as a file; the binary embeds it).
 pub fn default_scene_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/cornell_box.obj")
 }
@@ -18,12 +18,12 @@ pub fn default_scene_path() -> PathBuf {
 /// Load the scene named on the command line: an OBJ file, or a built-in scene's name
 /// (see `generate`); the Cornell box by default. Prints the scene's warnings.
 pub fn load_scene(args: &SceneArgs) -> Result<Scene> {
-    let path = args.scene.clone().unwrap_or_else(default_scene_path);
+    let path = args.scene.clone().unwrap_or_else(|| PathBuf::from("cornell-box"));
     let name = path.to_string_lossy();
     let scene = if path.is_file() || path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")) {
         load_obj(&path)?
     } else if name == "cornell-box" {
-        load_obj(&default_scene_path())?
+        crate::scene::cornell_box()?
     } else {
         match crate::generate::builtin(&name) {
             Some(generated) => generated?.into_scene()?,
