@@ -12,6 +12,11 @@ const FORWARDED_FEATURES: &[&str] = &[
 ];
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    // spirv-builder reports the shader sources by absolute path; also name them relative
+    // to this package, so that a checkout elsewhere sharing the target directory (a CI
+    // clone, say) still rebuilds the SPIR-V when its own sources change.
+    println!("cargo:rerun-if-changed=../shader-crate/src");
+    println!("cargo:rerun-if-changed=../shader-crate/Cargo.toml");
     let features: Vec<String> = FORWARDED_FEATURES
         .iter()
         .filter(|f| {

@@ -17,6 +17,13 @@ fn kernel_args(integrator: Integrator, spp: u32) -> KernelArgs {
     KernelArgs {
         integrator,
         spp,
+        candidates: 8,
+        temporal_cap: 20.0,
+        spatial_neighbours: 5,
+        spatial_radius: 10.0,
+        spatial_passes: 2,
+        no_temporal: false,
+        no_visibility_reuse: false,
         max_depth: 4,
         sky: glam::Vec3::ZERO,
         light_sampling: LightSampling::Power,
@@ -87,8 +94,9 @@ fn split_into_passes_does_not_change_the_image() {
 
 #[test]
 fn path_integrators_gpu_match_cpu() {
-    for integrator in [Integrator::Pt, Integrator::Nee, Integrator::Mis] {
-        let (w, h, spp) = (48, 48, 4);
+    // ReSTIR: 3 frames, so every pass (temporal and spatial with history) takes part.
+    for integrator in [Integrator::Pt, Integrator::Nee, Integrator::Mis, Integrator::Ris, Integrator::Restir] {
+        let (w, h, spp) = (48, 48, 3);
         let (g, c) = render_both(integrator, w, h, spp);
         let n = g.pixels.len();
         let same = g

@@ -12,6 +12,10 @@ pub trait Backend {
     /// Returns the pass's device time in milliseconds where the backend measures it
     /// (GPU timestamps), else the wall-clock time.
     fn pass(&mut self, integrator: Integrator, params: &FrameParams) -> Result<f64>;
+    /// Per-pass times of the last multi-pass frame (ReSTIR), in ms; empty otherwise.
+    fn pass_breakdown(&self) -> Vec<(&'static str, f64)> {
+        Vec::new()
+    }
     fn read_accumulation(&mut self) -> Result<Vec<[f32; 4]>>;
     /// Rays traced since the last `clear` (camera, bounce, shadow and AO rays).
     fn rays_traced(&mut self) -> Result<u64>;

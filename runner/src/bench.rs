@@ -23,6 +23,8 @@ pub struct BenchReport {
     pub rays_per_frame: u64,
     pub frame_ms: Vec<f64>,
     pub pass_ms: Vec<f64>,
+    /// ReSTIR: median ms of each pass kind per frame.
+    pub breakdown: Vec<(&'static str, f64)>,
 }
 
 fn min(v: &[f64]) -> f64 {
@@ -63,6 +65,9 @@ impl BenchReport {
             self.frame_ms.len()
         );
         let _ = writeln!(s, "ms/pass        min {:.3}  median {:.3}", min(&self.pass_ms), median(&self.pass_ms));
+        for (name, ms) in &self.breakdown {
+            let _ = writeln!(s, "  {name:<12} {ms:.3} ms (median per frame)");
+        }
         let _ = writeln!(s, "rays/s         {:.3} G", self.rays_per_second() * 1e-9);
         s
     }
@@ -72,7 +77,7 @@ impl BenchReport {
             "{{\"scene\":{:?},\"triangles\":{},\"traversal\":{:?},\"bvh_build_ms\":{:.3},\"backend\":{:?},\
              \"integrator\":{:?},\"width\":{},\"height\":{},\"spp\":{},\"rays_per_frame\":{},\
              \"frame_ms_min\":{:.4},\"frame_ms_median\":{:.4},\"pass_ms_min\":{:.4},\"pass_ms_median\":{:.4},\
-             \"rays_per_second\":{:.1}}}",
+             \"rays_per_second\":{:.1},\"breakdown_ms\":{{{}}}}}",
             self.scene,
             self.triangles,
             self.traversal,
@@ -87,7 +92,12 @@ impl BenchReport {
             median(&self.frame_ms),
             min(&self.pass_ms),
             median(&self.pass_ms),
-            self.rays_per_second()
+            self.rays_per_second(),
+            self.breakdown
+                .iter()
+                .map(|(n, ms)| format!("\"{n}\":{ms:.4}"))
+                .collect::<Vec<_>>()
+                .join(",")
         )
     }
 }
@@ -103,14 +113,32 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
     let mut frame_ms = Vec::new();
     let mut pass_ms = Vec::new();
     let mut rays_per_frame = 0;
+    let mut per_pass: Vec<(&'static str, Vec<f64>)> = Vec::new();
     for run in 0..=args.runs {
         let (_, stats) = render(backend.as_mut(), k.integrator, &params, k.spp, 1, false)?;
         if run > 0 {
             frame_ms.push(stats.pass_ms.iter().sum());
             pass_ms.extend(stats.pass_ms);
             rays_per_frame = stats.rays;
+            // Sum each pass kind within a frame (spatial may run several times).
+            let frames = k.spp.max(1) as f64;
+            for (name, ms) in stats.breakdown {
+                match per_pass.iter_mut().find(|(n, _)| *n == name) {
+                    Some((_, v)) => v.push(ms / frames),
+                    None => per_pass.push((name, vec![ms / frames])),
+                }
+            }
         }
     }
+    // Per frame: total over the runs of each kind / (runs), as a median of per-run sums.
+    let runs = args.runs as usize;
+    let breakdown = per_pass
+        .into_iter()
+        .map(|(name, v)| {
+            let per_run: Vec<f64> = v.chunks(v.len() / runs).map(|c| c.iter().sum()).collect();
+            (name, median(&per_run))
+        })
+        .collect();
     Ok(BenchReport {
         scene: args
             .scene
@@ -129,5 +157,6 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
         rays_per_frame,
         frame_ms,
         pass_ms,
+        breakdown,
     })
 }

@@ -41,6 +41,10 @@ pub enum Integrator {
     Nee,
     /// NEE and BSDF sampling combined by multiple importance sampling (power heuristic)
     Mis,
+    /// Resampled importance sampling of direct light (--candidates per pixel, WRS)
+    Ris,
+    /// ReSTIR DI: RIS plus temporal and spatial reuse of reservoirs across frames/pixels
+    Restir,
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
@@ -106,6 +110,27 @@ pub struct KernelArgs {
     /// How NEE and MIS pick a light triangle
     #[arg(long, value_enum, default_value_t = LightSampling::Power)]
     pub light_sampling: LightSampling,
+    /// RIS/ReSTIR: light candidates per pixel
+    #[arg(long, default_value_t = 32, value_name = "M")]
+    pub candidates: u32,
+    /// ReSTIR: cap on the temporal history, in multiples of --candidates
+    #[arg(long, default_value_t = 20.0, value_name = "X")]
+    pub temporal_cap: f32,
+    /// ReSTIR: neighbours merged per spatial pass (at most 16)
+    #[arg(long, default_value_t = 5, value_name = "K")]
+    pub spatial_neighbours: u32,
+    /// ReSTIR: radius of the spatial neighbourhood in pixels
+    #[arg(long, default_value_t = 30.0, value_name = "PX")]
+    pub spatial_radius: f32,
+    /// ReSTIR: spatial reuse passes per frame (0 = none)
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub spatial_passes: u32,
+    /// ReSTIR: no temporal reuse
+    #[arg(long)]
+    pub no_temporal: bool,
+    /// ReSTIR: do not test each pixel's pick for visibility before reusing it
+    #[arg(long)]
+    pub no_visibility_reuse: bool,
     /// AO: occlusion rays per camera sample
     #[arg(long, default_value_t = 4, value_name = "N")]
     pub ao_rays: u32,
@@ -129,6 +154,19 @@ pub struct RenderArgs {
     /// Output image: .png (sRGB, clamped) or .exr (linear float RGB)
     #[arg(long, default_value = "out.png", value_name = "FILE")]
     pub out: PathBuf,
+    /// Frames to render in sequence (ReSTIR reuses each frame's reservoirs in the next;
+    /// for ReSTIR every sample of --spp is itself a frame of the pipeline)
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub frames: u32,
+    /// Move the camera around --target by this many degrees per frame (about --up)
+    #[arg(long, default_value_t = 0.0, value_name = "DEG", allow_hyphen_values = true)]
+    pub orbit: f32,
+    /// Average all frames into --out (default: --out is the last frame)
+    #[arg(long)]
+    pub accumulate: bool,
+    /// Also write every frame to this directory as frame_NNNN.<ext of --out>
+    #[arg(long, value_name = "DIR")]
+    pub out_dir: Option<PathBuf>,
 }
 
 #[derive(Args, Debug, Clone)]

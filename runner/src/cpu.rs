@@ -1,13 +1,16 @@
 //! CPU backend: rayon over image rows, calling the very kernel functions the GPU runs.
+//! ReSTIR runs its passes one after another over the whole image, like the GPU dispatches.
 use std::time::Instant;
 
-use kernels::integrators::{ao, path};
-use kernels::types::FrameParams;
+use kernels::integrators::{ao, path, restir};
+use kernels::reservoir::Reservoir;
+use kernels::types::{FrameParams, GBufferTexel};
 use rayon::prelude::*;
 
 use crate::backend::Backend;
 use crate::cli::Integrator;
 use crate::error::Result;
+use crate::restir::{RestirPass, RestirSchedule};
 use crate::scene::Scene;
 
 pub struct CpuBackend {
@@ -15,15 +18,102 @@ pub struct CpuBackend {
     width: u32,
     accum: Vec<[f32; 4]>,
     ray_counts: Vec<u32>,
+    restir: RestirBuffers,
+}
+
+/// G-buffers and reservoirs, allocated on the first ReSTIR frame.
+#[derive(Default)]
+struct RestirBuffers {
+    gbuffers: [Vec<GBufferTexel>; 2],
+    reservoirs: [Vec<Reservoir>; 3],
+    schedule: RestirSchedule,
+    pass_ms: Vec<(&'static str, f64)>,
+}
+
+/// Run `f(x, y, out, rays)` for every pixel in parallel, rows at a time.
+fn per_pixel<T: Send>(
+    width: u32,
+    out: &mut [T],
+    ray_counts: &mut [u32],
+    f: impl Fn(u32, u32, &mut T, &mut u32) + Sync,
+) {
+    let w = width as usize;
+    out.par_chunks_mut(w)
+        .zip(ray_counts.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (row, counts))| {
+            for (x, (o, c)) in row.iter_mut().zip(counts).enumerate() {
+                let mut rays = 0;
+                f(x as u32, y as u32, o, &mut rays);
+                *c = c.wrapping_add(rays);
+            }
+        });
 }
 
 impl CpuBackend {
     pub fn new(scene: &Scene, width: u32, height: u32) -> Self {
+        let n = width as usize * height as usize;
         Self {
             scene: scene.clone(),
             width,
-            accum: vec![[0.0; 4]; width as usize * height as usize],
-            ray_counts: vec![0; width as usize * height as usize],
+            accum: vec![[0.0; 4]; n],
+            ray_counts: vec![0; n],
+            restir: RestirBuffers::default(),
+        }
+    }
+
+    fn restir_frame(&mut self, params: &FrameParams) {
+        let n = self.accum.len();
+        let st = &mut self.restir;
+        if st.gbuffers[0].len() != n {
+            st.gbuffers = [vec![GBufferTexel::default(); n], vec![GBufferTexel::default(); n]];
+            st.reservoirs = [vec![Reservoir::empty(); n], vec![Reservoir::empty(); n], vec![Reservoir::empty(); n]];
+        }
+        st.pass_ms.clear();
+        let scene = self.scene.kernel();
+        let width = self.width;
+        for (pass, sl) in st.schedule.frame(params.spatial_passes) {
+            let start = Instant::now();
+            let mut p = *params;
+            if let RestirPass::Spatial(i) = pass {
+                p.spatial_pass = i;
+            }
+            let p = &p;
+            // Take the written buffer out so the read ones can be borrowed alongside.
+            let mut g_cur = std::mem::take(&mut st.gbuffers[sl.g_cur]);
+            let g_prev = &st.gbuffers[sl.g_prev];
+            match pass {
+                RestirPass::Primary => per_pixel(width, &mut g_cur, &mut self.ray_counts, |x, y, o, rays| {
+                    *o = restir::primary_hit(&scene, p, x, y, rays);
+                }),
+                RestirPass::Shade => {
+                    let (g, r) = (&g_cur, &st.reservoirs[sl.res_in]);
+                    per_pixel(width, &mut self.accum, &mut self.ray_counts, |x, y, acc, rays| {
+                        let i = (y * width + x) as usize;
+                        let l = restir::shade_pass(&scene, p, &g[i], &r[i], i as u32, rays);
+                        let l = if l.is_finite() { l } else { glam::Vec3::ZERO };
+                        *acc = [acc[0] + l.x, acc[1] + l.y, acc[2] + l.z, acc[3] + 1.0];
+                    });
+                }
+                _ => {
+                    let mut out = std::mem::take(&mut st.reservoirs[sl.res_out]);
+                    let (res_in, res_prev) = (&st.reservoirs[sl.res_in], &st.reservoirs[sl.res_prev]);
+                    let g = &g_cur;
+                    per_pixel(width, &mut out, &mut self.ray_counts, |x, y, o, rays| {
+                        let i = y * width + x;
+                        *o = match pass {
+                            RestirPass::Initial => restir::initial_pass(&scene, p, &g[i as usize], i, rays),
+                            RestirPass::Temporal => {
+                                restir::temporal_pass(&scene, p, g, g_prev, res_in, res_prev, x, y)
+                            }
+                            _ => restir::spatial_pass(&scene, p, g, res_in, x, y),
+                        };
+                    });
+                    st.reservoirs[sl.res_out] = out;
+                }
+            }
+            st.gbuffers[sl.g_cur] = g_cur;
+            st.pass_ms.push((pass.name(), start.elapsed().as_secs_f64() * 1e3));
         }
     }
 }
@@ -35,29 +125,27 @@ impl Backend for CpuBackend {
 
     fn pass(&mut self, integrator: Integrator, params: &FrameParams) -> Result<f64> {
         let start = Instant::now();
+        if integrator == Integrator::Restir {
+            self.restir_frame(params);
+            return Ok(start.elapsed().as_secs_f64() * 1e3);
+        }
         let scene = self.scene.kernel();
-        let width = self.width as usize;
-        self.accum
-            .par_chunks_mut(width)
-            .zip(self.ray_counts.par_chunks_mut(width))
-            .enumerate()
-            .for_each(|(y, (row, counts))| {
-                for (x, (acc, count)) in row.iter_mut().zip(counts).enumerate() {
-                    let (x, y) = (x as u32, y as u32);
-                    let r = match integrator {
-                        Integrator::Ao => ao::render_pixel(&scene, params, x, y),
-                        Integrator::Pt => path::render_pixel(&scene, params, x, y, path::BSDF),
-                        Integrator::Nee => path::render_pixel(&scene, params, x, y, path::NEE),
-                        Integrator::Mis => path::render_pixel(&scene, params, x, y, path::MIS),
-                    };
-                    acc[0] += r.sum.x;
-                    acc[1] += r.sum.y;
-                    acc[2] += r.sum.z;
-                    acc[3] += params.samples as f32;
-                    *count = count.wrapping_add(r.rays);
-                }
-            });
+        per_pixel(self.width, &mut self.accum, &mut self.ray_counts, |x, y, acc, rays| {
+            let r = match integrator {
+                Integrator::Ao => ao::render_pixel(&scene, params, x, y),
+                Integrator::Pt => path::render_pixel(&scene, params, x, y, path::BSDF),
+                Integrator::Nee => path::render_pixel(&scene, params, x, y, path::NEE),
+                Integrator::Mis => path::render_pixel(&scene, params, x, y, path::MIS),
+                Integrator::Ris | Integrator::Restir => path::render_pixel(&scene, params, x, y, path::RIS),
+            };
+            *acc = [acc[0] + r.sum.x, acc[1] + r.sum.y, acc[2] + r.sum.z, acc[3] + params.samples as f32];
+            *rays = r.rays;
+        });
         Ok(start.elapsed().as_secs_f64() * 1e3)
+    }
+
+    fn pass_breakdown(&self) -> Vec<(&'static str, f64)> {
+        self.restir.pass_ms.clone()
     }
 
     fn read_accumulation(&mut self) -> Result<Vec<[f32; 4]>> {

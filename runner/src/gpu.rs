@@ -6,13 +6,15 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-use kernels::types::FrameParams;
+use kernels::reservoir::Reservoir;
+use kernels::types::{FrameParams, GBufferTexel};
 use wgpu::util::DeviceExt;
 
 use crate::backend::Backend;
 use crate::bail;
 use crate::cli::Integrator;
 use crate::error::{Error, Result};
+use crate::restir::{RestirPass, RestirSchedule};
 use crate::scene::Scene;
 
 /// The kernels' SPIR-V, compiled from shader-crate by runner/build.rs.
@@ -30,9 +32,13 @@ impl Integrator {
             Integrator::Pt => "entry::pt_main",
             Integrator::Nee => "entry::nee_main",
             Integrator::Mis => "entry::mis_main",
+            Integrator::Ris => "entry::ris_main",
+            Integrator::Restir => RestirPass::Shade.entry_point(),
         }
     }
-    pub const ALL: [Integrator; 4] = [Integrator::Ao, Integrator::Pt, Integrator::Nee, Integrator::Mis];
+    /// Integrators with a single image kernel (ReSTIR runs a schedule of passes).
+    pub const IMAGE_KERNELS: [Integrator; 5] =
+        [Integrator::Ao, Integrator::Pt, Integrator::Nee, Integrator::Mis, Integrator::Ris];
 }
 
 /// Prefer a hardware adapter or accept only a software one.
@@ -64,7 +70,10 @@ pub fn is_software(adapter: &wgpu::Adapter) -> bool {
     adapter.get_info().device_type == wgpu::DeviceType::Cpu
 }
 
-/// Device, queue and one compute pipeline per integrator.
+/// Timestamp pairs available per frame (one pair per pass).
+const MAX_TIMED_PASSES: u32 = 32;
+
+/// Device, queue and one compute pipeline per kernel.
 pub struct GpuContext {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
@@ -72,7 +81,8 @@ pub struct GpuContext {
     pub limits: wgpu::Limits,
     timestamps: bool,
     layout: wgpu::BindGroupLayout,
-    pipelines: HashMap<Integrator, wgpu::ComputePipeline>,
+    restir_layout: wgpu::BindGroupLayout,
+    pipelines: HashMap<&'static str, wgpu::ComputePipeline>,
     /// Validation errors and device loss, reported by wgpu's callbacks.
     errors: Arc<Mutex<Option<String>>>,
 }
@@ -111,10 +121,13 @@ impl GpuContext {
             .chunks_exact(4)
             .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
             .collect();
-        let entry_points: Vec<wgpu::PassthroughShaderEntryPoint> = Integrator::ALL
+        let image_entries = Integrator::IMAGE_KERNELS.iter().map(|i| i.entry_point());
+        let restir_entries = RestirPass::ENTRY_POINTS.iter().map(|p| p.entry_point());
+        let names: Vec<&'static str> = image_entries.chain(restir_entries.clone()).collect();
+        let entry_points: Vec<wgpu::PassthroughShaderEntryPoint> = names
             .iter()
-            .map(|i| wgpu::PassthroughShaderEntryPoint {
-                name: Cow::Borrowed(i.entry_point()),
+            .map(|name| wgpu::PassthroughShaderEntryPoint {
+                name: Cow::Borrowed(*name),
                 workgroup_size: (WORKGROUP.0, WORKGROUP.1, 1),
             })
             .collect();
@@ -151,23 +164,41 @@ impl GpuContext {
                 storage(6, false), // rays traced per pixel
             ],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("scene"),
+        let restir_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("restir"),
+            entries: &[
+                storage(0, false), // current G-buffer
+                storage(1, true),  // previous G-buffer
+                storage(2, true),  // input reservoirs
+                storage(3, false), // output reservoirs
+                storage(4, true),  // previous frame's reservoirs
+            ],
+        });
+        let image_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("image"),
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let pipelines = Integrator::ALL
+        let restir_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("restir"),
+            bind_group_layouts: &[Some(&layout), Some(&restir_layout)],
+            immediate_size: 0,
+        });
+        let restir_names: Vec<&'static str> = restir_entries.collect();
+        let pipelines = names
             .iter()
-            .map(|&i| {
+            .map(|&name| {
+                let pipeline_layout =
+                    if restir_names.contains(&name) { &restir_pipeline_layout } else { &image_layout };
                 let p = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(i.entry_point()),
-                    layout: Some(&pipeline_layout),
+                    label: Some(name),
+                    layout: Some(pipeline_layout),
                     module: &module,
-                    entry_point: Some(i.entry_point()),
+                    entry_point: Some(name),
                     compilation_options: Default::default(),
                     cache: None,
                 });
-                (i, p)
+                (name, p)
             })
             .collect();
         let ctx = Self {
@@ -177,6 +208,7 @@ impl GpuContext {
             limits,
             timestamps,
             layout,
+            restir_layout,
             pipelines,
             errors,
         };
@@ -241,6 +273,15 @@ pub struct GpuBackend {
     readback: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
     queries: Option<(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
+    restir: Option<RestirBuffers>,
+    restir_pass_ms: Vec<(&'static str, f64)>,
+}
+
+/// ReSTIR's G-buffers and reservoirs, allocated on the first ReSTIR frame.
+struct RestirBuffers {
+    gbuffers: [wgpu::Buffer; 2],
+    reservoirs: [wgpu::Buffer; 3],
+    schedule: RestirSchedule,
 }
 
 impl GpuBackend {
@@ -319,17 +360,17 @@ impl GpuBackend {
             let set = device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("pass timestamps"),
                 ty: wgpu::QueryType::Timestamp,
-                count: 2,
+                count: 2 * MAX_TIMED_PASSES,
             });
             let resolve = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("timestamps"),
-                size: 16,
+                size: 16 * MAX_TIMED_PASSES as u64,
                 usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
             });
             let read = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("timestamps readback"),
-                size: 16,
+                size: 16 * MAX_TIMED_PASSES as u64,
                 usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
@@ -345,9 +386,113 @@ impl GpuBackend {
             readback,
             bind_group,
             queries,
+            restir: None,
+            restir_pass_ms: Vec::new(),
         };
         backend.ctx.wait()?;
         Ok(backend)
+    }
+
+    fn pixels(&self) -> u64 {
+        self.width as u64 * self.height as u64
+    }
+
+    /// Record one image-sized dispatch of `entry` into `encoder`, timed as pair `timer`.
+    fn dispatch(&self, encoder: &mut wgpu::CommandEncoder, entry: &str, extra: Option<&wgpu::BindGroup>, timer: u32) {
+        let timestamp_writes = self.queries.as_ref().map(|(set, _, _)| wgpu::ComputePassTimestampWrites {
+            query_set: set,
+            beginning_of_pass_write_index: Some(2 * timer),
+            end_of_pass_write_index: Some(2 * timer + 1),
+        });
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(entry),
+            timestamp_writes,
+        });
+        pass.set_pipeline(&self.ctx.pipelines[entry]);
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        if let Some(group) = extra {
+            pass.set_bind_group(1, group, &[]);
+        }
+        pass.dispatch_workgroups(self.width.div_ceil(WORKGROUP.0), self.height.div_ceil(WORKGROUP.1), 1);
+    }
+
+    /// Device times in ms of the first `n` timed passes (wall clock split evenly when the
+    /// adapter has no timestamp queries).
+    fn pass_times(&self, n: u32, wall_ms: f64) -> Result<Vec<f64>> {
+        let Some((set, resolve, read)) = &self.queries else {
+            return Ok(vec![wall_ms / n as f64; n as usize]);
+        };
+        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+        encoder.resolve_query_set(set, 0..2 * n, resolve, 0);
+        encoder.copy_buffer_to_buffer(resolve, 0, read, 0, 16 * n as u64);
+        self.ctx.queue.submit([encoder.finish()]);
+        let bytes = self.read_buffer(read)?;
+        let t: Vec<u64> = bytemuck::pod_collect_to_vec(&bytes[..16 * n as usize]);
+        let period = self.ctx.queue.get_timestamp_period() as f64;
+        Ok(t.chunks_exact(2).map(|p| p[1].saturating_sub(p[0]) as f64 * period * 1e-6).collect())
+    }
+
+    fn restir_buffers(&mut self) -> Result<()> {
+        if self.restir.is_some() {
+            return Ok(());
+        }
+        let g_size = self.pixels() * std::mem::size_of::<GBufferTexel>() as u64;
+        let r_size = self.pixels() * std::mem::size_of::<Reservoir>() as u64;
+        check_buffer_size(&self.ctx.limits, "the ReSTIR G-buffer", g_size)?;
+        check_buffer_size(&self.ctx.limits, "the ReSTIR reservoir buffer", r_size)?;
+        let make = |label: &str, size| {
+            self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
+        self.restir = Some(RestirBuffers {
+            gbuffers: [make("gbuffer a", g_size), make("gbuffer b", g_size)],
+            reservoirs: [make("reservoirs a", r_size), make("reservoirs b", r_size), make("reservoirs c", r_size)],
+            schedule: RestirSchedule::default(),
+        });
+        Ok(())
+    }
+
+    /// One ReSTIR frame: every pass is its own dispatch (and submit, since each may need
+    /// its own parameters), timed individually.
+    fn restir_frame(&mut self, params: &FrameParams) -> Result<f64> {
+        self.restir_buffers()?;
+        let start = Instant::now();
+        let st = self.restir.as_mut().expect("allocated above");
+        let plan = st.schedule.frame(params.spatial_passes);
+        if plan.len() as u32 > MAX_TIMED_PASSES {
+            bail!("too many ReSTIR passes per frame ({}; at most {MAX_TIMED_PASSES})", plan.len());
+        }
+        let st = self.restir.as_ref().expect("allocated above");
+        for (k, (pass, sl)) in plan.iter().enumerate() {
+            let mut p = *params;
+            if let RestirPass::Spatial(i) = pass {
+                p.spatial_pass = *i;
+            }
+            self.ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
+            let group = self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("restir"),
+                layout: &self.ctx.restir_layout,
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: st.gbuffers[sl.g_cur].as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 1, resource: st.gbuffers[sl.g_prev].as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 2, resource: st.reservoirs[sl.res_in].as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 3, resource: st.reservoirs[sl.res_out].as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 4, resource: st.reservoirs[sl.res_prev].as_entire_binding() },
+                ],
+            });
+            let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+            self.dispatch(&mut encoder, pass.entry_point(), Some(&group), k as u32);
+            self.ctx.queue.submit([encoder.finish()]);
+        }
+        self.ctx.wait()?;
+        let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+        let times = self.pass_times(plan.len() as u32, wall_ms)?;
+        self.restir_pass_ms = plan.iter().map(|(p, _)| p.name()).zip(times.iter().copied()).collect();
+        Ok(times.iter().sum())
     }
 
     /// Copy a storage buffer into the readback buffer and return its bytes.
@@ -388,46 +533,21 @@ impl Backend for GpuBackend {
     }
 
     fn pass(&mut self, integrator: Integrator, params: &FrameParams) -> Result<f64> {
+        if integrator == Integrator::Restir {
+            return self.restir_frame(params);
+        }
         let start = Instant::now();
-        let ctx = &self.ctx;
-        ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        {
-            let timestamp_writes = self.queries.as_ref().map(|(set, _, _)| {
-                wgpu::ComputePassTimestampWrites {
-                    query_set: set,
-                    beginning_of_pass_write_index: Some(0),
-                    end_of_pass_write_index: Some(1),
-                }
-            });
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some(integrator.entry_point()),
-                timestamp_writes,
-            });
-            pass.set_pipeline(&ctx.pipelines[&integrator]);
-            pass.set_bind_group(0, &self.bind_group, &[]);
-            pass.dispatch_workgroups(
-                self.width.div_ceil(WORKGROUP.0),
-                self.height.div_ceil(WORKGROUP.1),
-                1,
-            );
-        }
-        if let Some((set, resolve, read)) = &self.queries {
-            encoder.resolve_query_set(set, 0..2, resolve, 0);
-            encoder.copy_buffer_to_buffer(resolve, 0, read, 0, 16);
-        }
-        ctx.queue.submit([encoder.finish()]);
-        ctx.wait()?;
+        self.ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
+        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+        self.dispatch(&mut encoder, integrator.entry_point(), None, 0);
+        self.ctx.queue.submit([encoder.finish()]);
+        self.ctx.wait()?;
         let wall_ms = start.elapsed().as_secs_f64() * 1e3;
-        match &self.queries {
-            Some((_, _, read)) => {
-                let bytes = self.read_buffer(read)?;
-                let t: Vec<u64> = bytemuck::pod_collect_to_vec(&bytes);
-                let period = ctx.queue.get_timestamp_period() as f64;
-                Ok(t[1].saturating_sub(t[0]) as f64 * period * 1e-6)
-            }
-            None => Ok(wall_ms),
-        }
+        Ok(self.pass_times(1, wall_ms)?[0])
+    }
+
+    fn pass_breakdown(&self) -> Vec<(&'static str, f64)> {
+        self.restir_pass_ms.clone()
     }
 
     fn read_accumulation(&mut self) -> Result<Vec<[f32; 4]>> {

@@ -11,5 +11,6 @@ pub mod gpu;
 pub mod lights;
 pub mod output;
 pub mod render;
+pub mod restir;
 pub mod scene;
 pub mod setup;

@@ -4,8 +4,8 @@ use clap::Parser;
 use runner::cli::{Cli, Command, CompareArgs, GenerateArgs, RenderArgs};
 use runner::error::{Context, Result};
 use runner::output::{check_writable, write_image};
-use runner::render::{open_backend, render};
-use runner::setup::{frame_params, load_scene};
+use runner::render::open_backend;
+use runner::setup::{frame_params, load_scene, orbit_camera};
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -27,28 +27,57 @@ fn main() -> ExitCode {
 }
 
 fn render_command(args: &RenderArgs) -> Result<()> {
-    check_writable(&args.out)?;
+    let format = check_writable(&args.out)?;
+    if args.frames == 0 {
+        runner::bail!("--frames must be at least 1");
+    }
+    if !args.orbit.is_finite() {
+        runner::bail!("--orbit must be a finite number of degrees");
+    }
+    if let Some(dir) = &args.out_dir {
+        std::fs::create_dir_all(dir).context(|| format!("cannot create --out-dir '{}'", dir.display()))?;
+    }
     let scene = load_scene(&args.scene)?;
     let params = frame_params(&args.scene, &args.kernel, &scene)?;
     let mut backend = open_backend(args.kernel.backend, &scene, params.width, params.height)?;
+    let k = &args.kernel;
     eprintln!(
-        "{} triangles ({} emissive), {}x{}, {} spp, integrator {:?}, BVH {}, backend {}",
+        "{} triangles ({} emissive), {}x{}, {} spp x {} frame(s), integrator {:?}{}, BVH {}, backend {}",
         scene.triangles.len(),
         scene.lights.len(),
         params.width,
         params.height,
-        args.kernel.spp,
-        args.kernel.integrator,
+        k.spp,
+        args.frames,
+        k.integrator,
+        if k.integrator == runner::cli::Integrator::Restir {
+            if params.restir_flags & kernels::types::RESTIR_UNBIASED != 0 {
+                " (unbiased 1/Z)"
+            } else {
+                " (biased 1/M)"
+            }
+        } else {
+            ""
+        },
         kernels::bvh::TRAVERSAL,
         backend.describe()
     );
-    let (image, stats) = render(
+    let ext = match format {
+        runner::output::OutputFormat::Png => "png",
+        runner::output::OutputFormat::Exr => "exr",
+    };
+    let (image, stats) = runner::render::render_sequence(
         backend.as_mut(),
-        args.kernel.integrator,
+        k.integrator,
         &params,
-        args.kernel.spp,
-        1,
-        true,
+        k.spp,
+        args.frames,
+        args.accumulate,
+        |f| orbit_camera(&args.scene, &scene, args.orbit * f as f32),
+        |f, image| match &args.out_dir {
+            Some(dir) => write_image(&dir.join(format!("frame_{f:04}.{ext}")), image),
+            None => Ok(()),
+        },
     )?;
     write_image(&args.out, &image)?;
     let total: f64 = stats.pass_ms.iter().sum();

@@ -50,11 +50,62 @@ pub struct RenderStats {
     pub pass_ms: Vec<f64>,
     /// Rays traced in the whole render.
     pub rays: u64,
+    /// ReSTIR: (pass name, ms) for every pass of every frame.
+    pub breakdown: Vec<(&'static str, f64)>,
 }
 
-/// Render `spp` samples per pixel in passes of `samples_per_pass`, then read the mean.
-/// Sample `s` always draws the same random stream, so the split into passes does not
-/// change the image.
+fn progress_bar(total: u64, show: bool) -> ProgressBar {
+    if !show {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(total);
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp (eta {eta})")
+            .expect("static template"),
+    );
+    bar
+}
+
+/// Add `spp` samples per pixel to the backend's accumulation, in passes of
+/// `samples_per_pass`. Sample `s` always draws the same random stream, so the split into
+/// passes does not change the image. ReSTIR takes one sample per frame of its pipeline:
+/// sample `s` is frame `params.frame + s`, with history from the frame before.
+pub fn accumulate(
+    backend: &mut dyn Backend,
+    integrator: Integrator,
+    params: &FrameParams,
+    spp: u32,
+    samples_per_pass: u32,
+    bar: &ProgressBar,
+    stats: &mut RenderStats,
+) -> Result<()> {
+    let mut done = 0;
+    while done < spp {
+        let pass = if integrator == Integrator::Restir {
+            let mut p = FrameParams { frame: params.frame + done, samples: 1, ..*params };
+            if done > 0 {
+                p.restir_flags |= kernels::types::RESTIR_HISTORY_VALID;
+                p.prev_camera = p.camera;
+            }
+            p
+        } else {
+            FrameParams {
+                sample_offset: params.sample_offset + done,
+                samples: samples_per_pass.min(spp - done),
+                ..*params
+            }
+        };
+        stats.pass_ms.push(backend.pass(integrator, &pass)?);
+        for (name, ms) in backend.pass_breakdown() {
+            stats.breakdown.push((name, ms));
+        }
+        done += pass.samples;
+        bar.inc(pass.samples as u64);
+    }
+    Ok(())
+}
+
+/// Render `spp` samples per pixel from a cleared accumulation and read the mean.
 pub fn render(
     backend: &mut dyn Backend,
     integrator: Integrator,
@@ -63,34 +114,57 @@ pub fn render(
     samples_per_pass: u32,
     show_progress: bool,
 ) -> Result<(Image, RenderStats)> {
-    let bar = if show_progress {
-        let bar = ProgressBar::new(spp as u64);
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp (eta {eta})",
-            )
-            .expect("static template"),
-        );
-        bar
-    } else {
-        ProgressBar::hidden()
-    };
+    let bar = progress_bar(spp as u64, show_progress);
     backend.clear()?;
     let mut stats = RenderStats::default();
-    let mut done = 0;
-    while done < spp {
-        let samples = samples_per_pass.min(spp - done);
-        let pass = FrameParams {
-            sample_offset: params.sample_offset + done,
-            samples,
-            ..*params
-        };
-        stats.pass_ms.push(backend.pass(integrator, &pass)?);
-        done += samples;
-        bar.set_position(done as u64);
-    }
+    accumulate(backend, integrator, params, spp, samples_per_pass, &bar, &mut stats)?;
     bar.finish_and_clear();
     let accum = backend.read_accumulation()?;
     stats.rays = backend.rays_traced()?;
     Ok((Image::from_accumulation(params.width, params.height, &accum), stats))
+}
+
+/// Render a sequence of frames whose cameras come from `camera_of(frame)`. With
+/// `average`, all frames accumulate into the returned image; else it is the last frame.
+/// `on_frame` sees each frame's image as it completes.
+pub fn render_sequence(
+    backend: &mut dyn Backend,
+    integrator: Integrator,
+    params: &FrameParams,
+    spp: u32,
+    frames: u32,
+    average: bool,
+    camera_of: impl Fn(u32) -> Result<kernels::types::Camera>,
+    mut on_frame: impl FnMut(u32, &Image) -> Result<()>,
+) -> Result<(Image, RenderStats)> {
+    let bar = progress_bar(spp as u64 * frames as u64, true);
+    let mut stats = RenderStats::default();
+    let mut sum: Vec<[f32; 4]> = Vec::new();
+    backend.clear()?;
+    for f in 0..frames {
+        let mut p = *params;
+        p.camera = camera_of(f)?;
+        p.prev_camera = if f > 0 { camera_of(f - 1)? } else { p.camera };
+        p.frame = params.frame + f * spp;
+        p.sample_offset = params.sample_offset + f * spp;
+        if f > 0 {
+            p.restir_flags |= kernels::types::RESTIR_HISTORY_VALID;
+        }
+        backend.clear()?;
+        accumulate(backend, integrator, &p, spp, 1, &bar, &mut stats)?;
+        let accum = backend.read_accumulation()?;
+        stats.rays += backend.rays_traced()?;
+        on_frame(f, &Image::from_accumulation(p.width, p.height, &accum))?;
+        if sum.is_empty() || !average {
+            sum = accum;
+        } else {
+            for (s, a) in sum.iter_mut().zip(&accum) {
+                for c in 0..4 {
+                    s[c] += a[c];
+                }
+            }
+        }
+    }
+    bar.finish_and_clear();
+    Ok((Image::from_accumulation(params.width, params.height, &sum), stats))
 }

@@ -79,7 +79,7 @@ pub fn frame_params(args: &SceneArgs, kernel: &KernelArgs, scene: &Scene) -> Res
     if kernel.sky.min_element() < 0.0 {
         bail!("--sky must not be negative");
     }
-    let needs_lights = matches!(kernel.integrator, Integrator::Pt | Integrator::Nee | Integrator::Mis);
+    let needs_lights = kernel.integrator != Integrator::Ao;
     if needs_lights && scene.lights.is_empty() {
         if kernel.sky == Vec3::ZERO {
             bail!(
@@ -90,12 +90,32 @@ pub fn frame_params(args: &SceneArgs, kernel: &KernelArgs, scene: &Scene) -> Res
         }
         eprintln!("warning: the scene has no emitters; only --sky lights it");
     }
+    if kernel.candidates == 0 {
+        bail!("--candidates must be at least 1");
+    }
+    if !(kernel.temporal_cap > 0.0 && kernel.temporal_cap.is_finite()) {
+        bail!("--temporal-cap must be a positive number");
+    }
+    if kernel.spatial_neighbours > kernels::integrators::restir::MAX_SPATIAL_NEIGHBOURS {
+        bail!(
+            "--spatial-neighbours is at most {}",
+            kernels::integrators::restir::MAX_SPATIAL_NEIGHBOURS
+        );
+    }
+    if !(kernel.spatial_radius >= 1.0 && kernel.spatial_radius.is_finite()) {
+        bail!("--spatial-radius must be at least 1 pixel");
+    }
+    if kernel.spatial_passes > 8 {
+        bail!("--spatial-passes is at most 8");
+    }
     let ao_distance = kernel.ao_distance.unwrap_or(0.25 * scene.extent());
     if !(ao_distance > 0.0 && ao_distance.is_finite()) {
         bail!("--ao-distance must be a positive number, got {ao_distance}");
     }
+    let camera = camera(args, scene)?;
     Ok(FrameParams {
-        camera: camera(args, scene)?,
+        camera,
+        prev_camera: camera,
         width: args.width,
         height: args.height,
         seed: kernel.seed,
@@ -108,6 +128,47 @@ pub fn frame_params(args: &SceneArgs, kernel: &KernelArgs, scene: &Scene) -> Res
             LightSampling::Power => kernels::types::LIGHT_SAMPLING_POWER,
         },
         rr_depth: 3,
+        candidates: kernel.candidates,
+        restir_flags: restir_flags(kernel),
+        temporal_cap: kernel.temporal_cap,
+        spatial_neighbours: kernel.spatial_neighbours,
+        spatial_radius: kernel.spatial_radius,
+        spatial_passes: kernel.spatial_passes,
         ..Default::default()
     })
+}
+
+fn restir_flags(kernel: &KernelArgs) -> u32 {
+    use kernels::types::{RESTIR_TEMPORAL, RESTIR_UNBIASED, RESTIR_VISIBILITY_REUSE};
+    let mut flags = 0;
+    if kernels::integrators::restir::UNBIASED_BY_DEFAULT {
+        flags |= RESTIR_UNBIASED;
+    }
+    if !kernel.no_temporal {
+        flags |= RESTIR_TEMPORAL;
+    }
+    if !kernel.no_visibility_reuse {
+        flags |= RESTIR_VISIBILITY_REUSE;
+    }
+    flags
+}
+
+/// The camera of frame `frame` of an orbit: the eye turned about `up` through `target`.
+pub fn orbit_camera(args: &SceneArgs, scene: &Scene, degrees: f32) -> Result<Camera> {
+    let base = camera(args, scene)?;
+    if degrees == 0.0 {
+        return Ok(base);
+    }
+    let eye = Vec3::from(base.eye);
+    let forward = Vec3::from(base.forward);
+    let up = Vec3::from(base.up).normalize();
+    let target = args
+        .target
+        .or(scene.camera.map(|h| h.target))
+        .unwrap_or(eye + forward);
+    let rot = glam::Quat::from_axis_angle(up, degrees.to_radians());
+    let new_eye = target + rot * (eye - target);
+    let half_h = Vec3::from(base.up).length();
+    let fov = 2.0 * half_h.atan().to_degrees();
+    Ok(look_at(new_eye, target, up, fov, args.width as f32 / args.height as f32))
 }

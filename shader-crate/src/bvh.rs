@@ -55,6 +55,16 @@ impl<'a> Scene<'a> {
         return cwbvh_traverse(self.triangles, self.nodes, ray, t_max, true).is_hit();
     }
 
+    /// Whether the light point (q, nq) is visible from the surface point (p, n): one
+    /// shadow ray between the offset end points.
+    pub fn visible(&self, p: Vec3, n: Vec3, q: Vec3, nq: Vec3) -> bool {
+        let origin = offset_ray_origin(p, n);
+        let target = offset_ray_origin(q, nq);
+        let d = target - origin;
+        let dist = d.length();
+        !self.any_hit(&Ray::new(origin, d / dist), dist * 0.9999)
+    }
+
     pub fn material_of(&self, prim: u32) -> Material {
         self.materials[self.triangles[prim as usize].material as usize]
     }

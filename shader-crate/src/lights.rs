@@ -15,6 +15,9 @@ pub struct LightSample {
     /// Density of this point w.r.t. area: p(triangle) / area.
     pub pdf_area: f32,
     pub triangle: u32,
+    /// Barycentrics of `p` on the triangle (reservoirs store these).
+    pub b1: f32,
+    pub b2: f32,
 }
 
 /// Index into `lights` for a uniform number `u`, by the chosen mode.
@@ -57,6 +60,8 @@ pub fn sample_light(scene: &Scene, mode: u32, u0: f32, u1: f32, u2: f32) -> Ligh
         emission: scene.materials[tri.material as usize].emission(),
         pdf_area: selection_pdf(scene.lights, mode, index) / area,
         triangle,
+        b1,
+        b2,
     }
 }
 

@@ -148,9 +148,46 @@ pub struct FrameParams {
     pub light_sampling: u32,
     /// Russian roulette starts after this many segments.
     pub rr_depth: u32,
-    /// RIS: light candidates per pixel.
+    /// RIS / ReSTIR: light candidates per pixel.
     pub candidates: u32,
-    pub _pad: u32,
+    /// ReSTIR: `RESTIR_*` flags.
+    pub restir_flags: u32,
+    /// ReSTIR: the previous frame's camera, for temporal reprojection.
+    pub prev_camera: Camera,
+    /// ReSTIR: cap of the temporal history, in multiples of `candidates`.
+    pub temporal_cap: f32,
+    /// ReSTIR: neighbours per spatial pass and their radius in pixels.
+    pub spatial_neighbours: u32,
+    pub spatial_radius: f32,
+    /// ReSTIR: index of the current spatial pass (decorrelates their random streams).
+    pub spatial_pass: u32,
+    /// ReSTIR: number of spatial passes per frame.
+    pub spatial_passes: u32,
+    pub _reserved: [u32; 3],
+}
+
+/// ReSTIR: reuse the previous frame's reservoirs (needs `prev_camera` and history).
+pub const RESTIR_TEMPORAL: u32 = 1;
+/// ReSTIR: test the visibility of each pixel's initial pick before it is reused.
+pub const RESTIR_VISIBILITY_REUSE: u32 = 2;
+/// ReSTIR: the previous frame's buffers hold valid history (false on the first frame).
+pub const RESTIR_HISTORY_VALID: u32 = 4;
+/// ReSTIR: normalise W by 1/Z (unbiased) instead of 1/M (biased). The runner sets it when
+/// built with the `restir-unbiased` feature; tests set it directly to check both.
+pub const RESTIR_UNBIASED: u32 = 8;
+
+/// What the primary-hit pass leaves for the later ReSTIR passes. `prim == INVALID` marks a
+/// pixel whose camera ray left the scene; `front` is 1 when it hit an emitter's front.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
+pub struct GBufferTexel {
+    pub p: [f32; 3],
+    pub depth: f32,
+    pub n: [f32; 3],
+    pub prim: u32,
+    pub albedo: [f32; 3],
+    pub front: u32,
 }
 
 #[cfg(not(target_arch = "spirv"))]
@@ -158,7 +195,8 @@ const _: () = {
     assert!(core::mem::size_of::<Triangle>() == 48);
     assert!(core::mem::size_of::<Material>() == 32);
     assert!(core::mem::size_of::<Camera>() == 64);
-    assert!(core::mem::size_of::<FrameParams>() == 128);
+    assert!(core::mem::size_of::<FrameParams>() == 224);
+    assert!(core::mem::size_of::<GBufferTexel>() == 48);
     assert!(core::mem::size_of::<Light>() == 16);
     assert!(core::mem::size_of::<FrameParams>() % 16 == 0);
 };

@@ -3,6 +3,8 @@
 //! buffer (and divides by the total count at the end) and the rays to the statistics.
 pub mod ao;
 pub mod path;
+pub mod restir;
+pub mod ris;
 
 use crate::camera::primary_ray;
 use crate::glam::Vec3;
