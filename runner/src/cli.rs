@@ -88,7 +88,7 @@ pub struct SceneArgs {
     #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
     pub up: Option<Vec3>,
     /// Vertical field of view in degrees, in (0, 180)
-    #[arg(long, value_name = "DEG")]
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
     pub fov: Option<f32>,
 }
 

@@ -241,7 +241,7 @@ impl GpuContext {
 }
 
 /// Check a buffer against the device limits before allocating anything.
-fn check_buffer_size(limits: &wgpu::Limits, what: &str, bytes: u64) -> Result<()> {
+pub fn check_buffer_size(limits: &wgpu::Limits, what: &str, bytes: u64) -> Result<()> {
     let max = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
     if bytes > max {
         bail!(

@@ -52,7 +52,7 @@ impl Scene {
             ));
         }
         if triangles.is_empty() {
-            bail!("the scene has no triangles");
+            bail!("the scene has no triangles (is it an OBJ file with faces?)");
         }
         if let Some(t) = triangles.iter().find(|t| t.material as usize >= materials.len()) {
             bail!("triangle refers to material {} of {}", t.material, materials.len());
@@ -133,7 +133,7 @@ fn parse_obj(
     text: &str,
     load_mtl: impl Fn(&Path) -> tobj::MTLLoadResult,
 ) -> Result<Scene> {
-    check_vertices(name, text)?;
+    check_lines(name, text)?;
     let camera = parse_camera_hint(name, text)?;
 
     let options = tobj::LoadOptions {
@@ -202,20 +202,49 @@ fn material_from_mtl(m: &tobj::Material) -> Material {
     Material::new(kd.clamp(Vec3::ZERO, Vec3::ONE), ke.max(Vec3::ZERO))
 }
 
-/// Reject vertex lines with non-finite coordinates, naming the line: tobj would accept
-/// "nan" and "inf" and the renderer would silently produce garbage.
-fn check_vertices(name: &str, text: &str) -> Result<()> {
+/// Check vertex and face lines before tobj sees them, so every error names its line:
+/// tobj accepts "nan" and "inf" coordinates, silently drops faces of fewer than three
+/// vertices, and reports bad indices without a line number.
+fn check_lines(name: &str, text: &str) -> Result<()> {
+    let mut vertices: i64 = 0;
     for (i, line) in text.lines().enumerate() {
+        let n = i + 1;
         let mut words = line.split_whitespace();
-        if words.next() != Some("v") {
-            continue;
-        }
-        for w in words.take(3) {
-            match w.parse::<f32>() {
-                Ok(x) if x.is_finite() => {}
-                Ok(_) => bail!("{name}:{}: vertex coordinate '{w}' is not a finite number", i + 1),
-                Err(_) => bail!("{name}:{}: bad vertex coordinate '{w}'", i + 1),
+        match words.next() {
+            Some("v") => {
+                let coords: Vec<&str> = words.collect();
+                if coords.len() < 3 {
+                    bail!("{name}:{n}: vertex needs 3 coordinates, got {}", coords.len());
+                }
+                for w in coords.iter().take(3) {
+                    match w.parse::<f32>() {
+                        Ok(x) if x.is_finite() => {}
+                        Ok(_) => bail!("{name}:{n}: vertex coordinate '{w}' is not a finite number"),
+                        Err(_) => bail!("{name}:{n}: bad vertex coordinate '{w}'"),
+                    }
+                }
+                vertices += 1;
             }
+            Some("f") => {
+                let refs: Vec<&str> = words.collect();
+                if refs.len() < 3 {
+                    bail!("{name}:{n}: face has {} vertices; a face needs at least 3", refs.len());
+                }
+                for r in refs {
+                    let index = r.split('/').next().unwrap_or("");
+                    let k: i64 = index
+                        .parse()
+                        .map_err(|_| Error(format!("{name}:{n}: bad face index '{r}'")))?;
+                    if k == 0 {
+                        bail!("{name}:{n}: face index 0 (OBJ indices start at 1)");
+                    }
+                    let resolved = if k < 0 { vertices + k + 1 } else { k };
+                    if resolved < 1 || resolved > vertices {
+                        bail!("{name}:{n}: face index {k} is out of range ({vertices} vertices so far)");
+                    }
+                }
+            }
+            _ => {}
         }
     }
     Ok(())

@@ -10,6 +10,13 @@ use crate::cli::{Integrator, KernelArgs, LightSampling, SceneArgs};
 use crate::error::Result;
 use crate::scene::{load_obj, Scene};
 
+/// Largest image side and size: 16 bytes of accumulation per pixel must fit in memory and
+/// in one GPU buffer.
+pub const MAX_IMAGE_SIDE: u32 = 32_768;
+pub const MAX_IMAGE_PIXELS: u64 = 1 << 27;
+/// Most samples per pixel (and AO rays per sample): keeps sample indices far from overflow.
+pub const MAX_SPP: u32 = 1 << 24;
+
 /// The Cornell box in the source tree (tests load it as a file; the binary embeds it).
 pub fn default_scene_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/cornell_box.obj")
@@ -42,6 +49,17 @@ pub fn camera(args: &SceneArgs, scene: &Scene) -> Result<Camera> {
     if args.width == 0 || args.height == 0 {
         bail!("image size must be at least 1x1, got {}x{}", args.width, args.height);
     }
+    if args.width > MAX_IMAGE_SIDE || args.height > MAX_IMAGE_SIDE {
+        bail!("image size {}x{} is too large (at most {MAX_IMAGE_SIDE} per side)", args.width, args.height);
+    }
+    if args.width as u64 * args.height as u64 > MAX_IMAGE_PIXELS {
+        bail!(
+            "image size {}x{} is too large ({} pixels; at most {MAX_IMAGE_PIXELS})",
+            args.width,
+            args.height,
+            args.width as u64 * args.height as u64
+        );
+    }
     let (lo, hi) = scene.bounds();
     let centre = 0.5 * (lo + hi);
     let hint = scene.camera;
@@ -67,8 +85,11 @@ pub fn camera(args: &SceneArgs, scene: &Scene) -> Result<Camera> {
 }
 
 pub fn frame_params(args: &SceneArgs, kernel: &KernelArgs, scene: &Scene) -> Result<FrameParams> {
-    if kernel.spp == 0 {
-        bail!("--spp must be at least 1");
+    if kernel.spp == 0 || kernel.spp > MAX_SPP {
+        bail!("--spp must be between 1 and {MAX_SPP}, got {}", kernel.spp);
+    }
+    if kernel.ao_rays > MAX_SPP {
+        bail!("--ao-rays must be at most {MAX_SPP}");
     }
     if kernel.ao_rays == 0 {
         bail!("--ao-rays must be at least 1");

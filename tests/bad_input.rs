@@ -1,0 +1,238 @@
+//! Bad input never crashes, hangs or lies: one clear line on stderr and a non-zero exit,
+//! through the real binary. Also: determinism and finite output on extreme scenes.
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn runner(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_runner"));
+    cmd.args(args).env("XDG_RUNTIME_DIR", std::env::temp_dir());
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    cmd.output().expect("runner binary runs")
+}
+
+fn dir() -> PathBuf {
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("bad_input");
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn write(name: &str, text: &[u8]) -> PathBuf {
+    let p = dir().join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// Render `scene` on the CPU into a scratch PNG with extra flags.
+fn render_scene(scene: &Path, extra: &[&str]) -> Output {
+    let out = dir().join("out.png");
+    let mut args = vec!["render", "--backend", "cpu", "--width", "16", "--height", "16", "--spp", "1"];
+    args.extend(["--scene", scene.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    args.extend(extra);
+    runner(&args, &[])
+}
+
+/// The failure contract: non-zero exit, the message on one `error:` line, no panic.
+fn assert_fails_with(o: &Output, needle: &str) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "succeeded; stderr:\n{err}");
+    assert_eq!(o.status.code(), Some(1), "exit code; stderr:\n{err}");
+    let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(lines.len(), 1, "expected one error line:\n{err}");
+    assert!(lines[0].contains(needle), "'{needle}' not in '{}'", lines[0]);
+    assert!(!err.contains("panicked") && !err.contains("RUST_BACKTRACE"), "{err}");
+}
+
+const TRI: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+
+#[test]
+fn malformed_obj_files_name_the_line() {
+    let cases: &[(&str, String, &str)] = &[
+        ("badnum.obj", "v 0 0 0\nv 1 zz 0\nv 0 1 0\nf 1 2 3\n".into(), "badnum.obj:2: bad vertex coordinate 'zz'"),
+        ("nan.obj", "v 0 0 0\nv 1 0 0\nv 0 NaN 0\nf 1 2 3\n".into(), "nan.obj:3: vertex coordinate 'NaN' is not a finite number"),
+        ("inf.obj", "v inf 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".into(), "inf.obj:1: vertex coordinate 'inf' is not a finite number"),
+        ("short.obj", "v 0 0\n".into(), "short.obj:1: vertex needs 3 coordinates"),
+        ("oob.obj", format!("{TRI}f 1 2 9\n"), "oob.obj:4: face index 9 is out of range (3 vertices so far)"),
+        ("zero.obj", format!("{TRI}f 0 1 2\n"), "zero.obj:4: face index 0"),
+        ("negoob.obj", format!("{TRI}f -1 -2 -4\n"), "negoob.obj:4: face index -4 is out of range"),
+        ("two.obj", format!("{TRI}f 1 2\n"), "two.obj:4: face has 2 vertices"),
+        ("badidx.obj", format!("{TRI}f 1 2 three\n"), "badidx.obj:4: bad face index 'three'"),
+        ("empty.obj", String::new(), "the scene has no triangles"),
+        ("points.obj", TRI.into(), "the scene has no triangles"),
+        ("allflat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n".into(), "the scene has no triangles"),
+    ];
+    for (name, text, needle) in cases {
+        let o = render_scene(&write(name, text.as_bytes()), &[]);
+        assert_fails_with(&o, needle);
+    }
+}
+
+#[test]
+fn files_that_are_not_obj_or_do_not_exist() {
+    let noise: Vec<u8> = (0..4096u32).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8).collect();
+    assert_fails_with(&render_scene(&write("noise.obj", &noise), &[]), "no triangles");
+    assert_fails_with(&render_scene(Path::new("/nonexistent/x.obj"), &[]), "cannot read scene '/nonexistent/x.obj'");
+    assert_fails_with(&render_scene(&dir(), &[]), "cannot read scene");
+    assert_fails_with(&render_scene(Path::new("no-such-scene"), &[]), "no built-in scene of that name");
+}
+
+#[test]
+fn missing_or_broken_mtl_warns_and_uses_grey() {
+    for (name, mtl) in [("nomtl.obj", None), ("badmtl.obj", Some("newmtl m\nKd 1 x\n"))] {
+        if let Some(text) = mtl {
+            write("bad.mtl", text.as_bytes());
+        }
+        let lib = if mtl.is_some() { "bad.mtl" } else { "missing.mtl" };
+        let obj = write(name, format!("mtllib {lib}\n{TRI}usemtl m\nf 1 2 3\n").as_bytes());
+        let o = render_scene(&obj, &[]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        assert!(err.contains("warning: materials of") && err.contains("grey default"), "{err}");
+    }
+}
+
+#[test]
+fn degenerate_triangles_are_dropped_and_counted() {
+    let obj = write("degen.obj", format!("{TRI}v 5 0 0\nf 1 2 3\nf 1 2 4\nf 2 2 3\n").as_bytes());
+    let o = render_scene(&obj, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("dropped 2 degenerate triangle(s)"), "{err}");
+    assert!(err.contains("1 triangles"), "{err}");
+}
+
+#[test]
+fn a_scene_without_emitters() {
+    let obj = write("dark.obj", format!("{TRI}f 1 2 3\n").as_bytes());
+    for i in ["pt", "nee", "mis", "ris", "restir"] {
+        assert_fails_with(&render_scene(&obj, &["--integrator", i]), "no emitters");
+    }
+    // Lit by the sky instead: a warning, and a real image.
+    let o = render_scene(&obj, &["--integrator", "nee", "--sky", "1,1,1", "--eye", "0.2,0.2,2", "--target", "0.2,0.2,0"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && err.contains("warning: the scene has no emitters"), "{err}");
+    // AO needs no lights.
+    assert!(render_scene(&obj, &["--integrator", "ao"]).status.success());
+}
+
+#[test]
+fn absurd_or_contradictory_options() {
+    let cornell = Path::new("cornell-box");
+    let cases: &[(&[&str], &str)] = &[
+        (&["--width", "0"], "at least 1x1"),
+        (&["--height", "100000"], "too large"),
+        (&["--width", "20000", "--height", "20000"], "too large"),
+        (&["--spp", "0"], "--spp must be between 1 and"),
+        (&["--spp", "4294967295"], "--spp must be between 1 and"),
+        (&["--ao-rays", "0"], "--ao-rays"),
+        (&["--fov", "0"], "--fov must be in (0, 180)"),
+        (&["--fov", "-5"], "--fov must be in (0, 180)"),
+        (&["--fov", "180"], "--fov must be in (0, 180)"),
+        (&["--eye", "1,2,3", "--target", "1,2,3"], "same point"),
+        (&["--eye", "0,0,0", "--target", "0,5,0", "--up", "0,1,0"], "parallel"),
+        (&["--up", "0,0,0"], "--up"),
+        (&["--eye", "1,2"], "expected X,Y,Z"),
+        (&["--eye", "1,nan,2"], "not a finite number"),
+        (&["--max-depth", "0"], "--max-depth"),
+        (&["--candidates", "0"], "--candidates"),
+        (&["--spatial-neighbours", "99"], "--spatial-neighbours"),
+        (&["--frames", "0"], "--frames"),
+        (&["--integrator", "photon-mapping"], "photon-mapping"),
+        (&["--bogus-flag"], "--bogus-flag"),
+    ];
+    let out = dir().join("absurd.png");
+    for (extra, needle) in cases {
+        // Only the flag under test: every case must fail before any rendering.
+        let mut args = vec!["render", "--backend", "cpu", "--scene", cornell.to_str().unwrap()];
+        args.extend(["--out", out.to_str().unwrap()]);
+        args.extend(*extra);
+        let o = runner(&args, &[]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{extra:?} succeeded");
+        assert!(err.contains(needle), "{extra:?}: '{needle}' not in:\n{err}");
+        assert!(!err.contains("panicked"), "{extra:?}:\n{err}");
+    }
+}
+
+#[test]
+fn unwritable_or_unknown_outputs_fail_before_rendering() {
+    let base = ["render", "--backend", "cpu", "--width", "8", "--height", "8", "--spp", "1", "--out"];
+    for (out, needle) in [
+        ("/nonexistent-dir/x.png", "does not exist"),
+        ("picture.jpg", "unknown image format"),
+        ("noext", "unknown image format"),
+    ] {
+        let mut args = base.to_vec();
+        args.push(out);
+        assert_fails_with(&runner(&args, &[]), needle);
+    }
+}
+
+#[test]
+fn no_vulkan_adapter_falls_back_or_fails_as_asked() {
+    // Point the Vulkan loader at no driver at all.
+    let env = [("VK_ICD_FILENAMES", "/nonexistent.json"), ("VK_DRIVER_FILES", "/nonexistent.json")];
+    let out = dir().join("fallback.png");
+    let args = ["render", "--width", "8", "--height", "8", "--spp", "1", "--out", out.to_str().unwrap()];
+    let o = runner(&args, &env);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("no Vulkan adapter found; using the CPU backend"), "{err}");
+    let mut gpu = args.to_vec();
+    gpu.extend(["--backend", "gpu"]);
+    assert_fails_with(&runner(&gpu, &env), "no Vulkan adapter");
+}
+
+#[test]
+fn buffer_limits_are_checked_with_numbers() {
+    let limits = wgpu::Limits { max_storage_buffer_binding_size: 1000, max_buffer_size: 4000, ..Default::default() };
+    assert!(runner::gpu::check_buffer_size(&limits, "the triangle buffer", 1000).is_ok());
+    let e = runner::gpu::check_buffer_size(&limits, "the triangle buffer", 1048).unwrap_err();
+    assert!(e.0.contains("the triangle buffer needs 1048 bytes") && e.0.contains("limit of 1000") && e.0.contains("by 48"), "{e}");
+}
+
+#[test]
+fn same_command_and_seed_give_identical_bytes() {
+    for (integrator, backend) in [("mis", "cpu"), ("restir", "cpu"), ("nee", "gpu")] {
+        let files: Vec<Vec<u8>> = (0..2)
+            .map(|k| {
+                let out = dir().join(format!("det_{integrator}_{backend}_{k}.exr"));
+                let o = runner(
+                    &["render", "--integrator", integrator, "--backend", backend, "--width", "24", "--height", "16",
+                      "--spp", "3", "--seed", "42", "--out", out.to_str().unwrap()],
+                    &[],
+                );
+                assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+                std::fs::read(&out).unwrap()
+            })
+            .collect();
+        assert!(files[0] == files[1], "{integrator} on {backend}: outputs differ");
+    }
+}
+
+#[test]
+fn extreme_emission_and_tiny_triangles_stay_finite() {
+    // A 1e30 emitter, a 1e-6-sized triangle fan, huge and tiny geometry in one scene.
+    let mut obj = String::from("mtllib x.mtl\nusemtl hot\nv -1 2 -1\nv 1 2 -1\nv 0 2 1\nf 1 3 2\nusemtl grey\n");
+    obj.push_str("v -50 0 -50\nv 50 0 -50\nv 0 0 50\nf 4 6 5\n");
+    let mut k = 7;
+    for i in 0..50 {
+        let x = i as f32 * 1e-6;
+        obj.push_str(&format!("v {x} 0.5 0\nv {} 0.5 0\nv {x} 0.500001 1e-7\nf {k} {} {}\n", x + 1e-6, k + 1, k + 2));
+        k += 3;
+    }
+    write("x.mtl", b"newmtl hot\nKd 0.9 0.9 0.9\nKe 1e30 1e30 1e30\nnewmtl grey\nKd 0.99 0.99 0.99\n");
+    let scene = write("extreme.obj", obj.as_bytes());
+    for i in ["pt", "nee", "mis", "ris", "restir", "ao"] {
+        let out = dir().join(format!("extreme_{i}.exr"));
+        let o = runner(
+            &["render", "--scene", scene.to_str().unwrap(), "--integrator", i, "--backend", "cpu", "--width", "24",
+              "--height", "24", "--spp", "4", "--eye", "0,1,4", "--target", "0,0.5,0", "--out", out.to_str().unwrap()],
+            &[],
+        );
+        assert!(o.status.success(), "{i}: {}", String::from_utf8_lossy(&o.stderr));
+        let img = image::open(&out).unwrap().to_rgb32f();
+        assert!(img.pixels().all(|p| p.0.iter().all(|c| c.is_finite())), "{i}: non-finite pixel");
+    }
+}
