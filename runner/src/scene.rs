@@ -111,9 +111,28 @@ const CORNELL_BOX_MTL: &str = include_str!("../../assets/cornell_box.mtl");
 
 /// The built-in Cornell box (assets/cornell_box.obj).
 pub fn cornell_box() -> Result<Scene> {
-    parse_obj("cornell-box", CORNELL_BOX_OBJ, |_| {
-        tobj::load_mtl_buf(&mut CORNELL_BOX_MTL.as_bytes())
-    })
+    parse_obj("cornell-box", CORNELL_BOX_OBJ, |_| load_mtl_text(CORNELL_BOX_MTL))
+}
+
+/// Parse MTL text with tobj, after checking what tobj would panic on: colour lines
+/// (Ka, Kd, Ks, Ke, Tf) need three numbers.
+fn load_mtl_text(text: &str) -> tobj::MTLLoadResult {
+    for line in text.lines() {
+        let mut words = line.split_whitespace();
+        if let Some("Ka" | "Kd" | "Ks" | "Ke" | "Tf") = words.next() {
+            if words.take(3).filter(|w| w.parse::<f32>().is_ok()).count() < 3 {
+                return Err(tobj::LoadError::MaterialParseError);
+            }
+        }
+    }
+    tobj::load_mtl_buf(&mut text.as_bytes())
+}
+
+fn load_mtl_file(path: &Path) -> tobj::MTLLoadResult {
+    match std::fs::read(path) {
+        Ok(bytes) => load_mtl_text(&String::from_utf8_lossy(&bytes)),
+        Err(_) => Err(tobj::LoadError::OpenFileFailed),
+    }
 }
 
 /// Load an OBJ file (and the MTL files it names, relative to it).
@@ -124,7 +143,16 @@ pub fn load_obj(path: &Path) -> Result<Scene> {
     };
     let text = String::from_utf8_lossy(&bytes);
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    parse_obj(&path.display().to_string(), &text, |mtl| tobj::load_mtl(dir.join(mtl)))
+    parse_obj(&path.display().to_string(), &text, |mtl| load_mtl_file(&dir.join(mtl)))
+}
+
+/// Parse OBJ text with, optionally, the text of the MTL file it refers to (whatever name
+/// it gives): the loader without a file system, for fuzzing and tests.
+pub fn parse_obj_text(name: &str, obj: &str, mtl: Option<&str>) -> Result<Scene> {
+    parse_obj(name, obj, |_| match mtl {
+        Some(text) => load_mtl_text(text),
+        None => Err(tobj::LoadError::OpenFileFailed),
+    })
 }
 
 /// Parse OBJ text named `name` (for messages); `load_mtl` resolves `mtllib` names.
