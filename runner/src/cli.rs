@@ -29,6 +29,10 @@ pub enum Command {
     Generate(GenerateArgs),
     /// Compare an image with a reference: RMSE, relMSE, identical pixels
     Compare(CompareArgs),
+    /// Interactive viewer: WASD/QE move, drag to look, scroll = speed, R reset camera,
+    /// 1-6 integrator (ao pt nee mis ris restir), T temporal, +/- spatial passes,
+    /// B biased/unbiased, P save PNG+EXR, Esc quit
+    View(ViewArgs),
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, ValueEnum)]
@@ -181,6 +185,23 @@ pub struct BenchArgs {
     /// Print one JSON object instead of the table
     #[arg(long)]
     pub json: bool,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct ViewArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    #[command(flatten)]
+    pub kernel: KernelArgs,
+    /// Multiply the displayed radiance by this
+    #[arg(long, default_value_t = 1.0)]
+    pub exposure: f32,
+    /// Close after this many frames (for scripts and tests)
+    #[arg(long, value_name = "N")]
+    pub exit_after: Option<u32>,
+    /// With --exit-after: save the final image here (PNG also writes an EXR beside it)
+    #[arg(long, value_name = "FILE")]
+    pub screenshot: Option<PathBuf>,
 }
 
 #[derive(Args, Debug, Clone)]

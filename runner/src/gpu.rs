@@ -41,23 +41,33 @@ impl Integrator {
         [Integrator::Ao, Integrator::Pt, Integrator::Nee, Integrator::Mis, Integrator::Ris];
 }
 
-/// Prefer a hardware adapter or accept only a software one.
-#[derive(Copy, Clone, Debug, PartialEq, Eq)]
-pub enum AdapterKind {
-    Any,
-    SoftwareOnly,
+/// The kernels' SPIR-V as 32-bit words.
+pub fn spirv_words() -> Vec<u32> {
+    SPIRV.chunks_exact(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])).collect()
+}
+
+/// A Vulkan instance; the viewer passes its display so that it can present to windows.
+pub fn instance(display: Option<Box<dyn wgpu::wgt::WgpuHasDisplayHandle>>) -> wgpu::Instance {
+    let base = match display {
+        Some(d) => wgpu::InstanceDescriptor::new_with_display_handle(d),
+        None => wgpu::InstanceDescriptor::new_without_display_handle(),
+    };
+    wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::VULKAN,
+        // No validation layers by default even though release builds keep debug assertions;
+        // WGPU_VALIDATION=1 / WGPU_DEBUG=1 turn them on.
+        flags: wgpu::InstanceFlags::empty().with_env(),
+        ..base
+    })
 }
 
 /// The Vulkan adapters that can run our kernels (SPIR-V passthrough), best first:
 /// hardware GPUs, then software rasterisers such as lavapipe.
 pub fn adapters() -> Vec<wgpu::Adapter> {
-    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
-        backends: wgpu::Backends::VULKAN,
-        // No validation layers by default even though release builds keep debug assertions;
-        // WGPU_VALIDATION=1 / WGPU_DEBUG=1 turn them on.
-        flags: wgpu::InstanceFlags::empty().with_env(),
-        ..wgpu::InstanceDescriptor::new_without_display_handle()
-    });
+    adapters_of(&instance(None))
+}
+
+pub fn adapters_of(instance: &wgpu::Instance) -> Vec<wgpu::Adapter> {
     let mut list: Vec<wgpu::Adapter> = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN))
         .into_iter()
         .filter(|a| a.features().contains(wgpu::Features::PASSTHROUGH_SHADERS))
@@ -117,10 +127,7 @@ impl GpuContext {
                 .get_or_insert(format!("GPU device lost ({reason:?}): {msg}"));
         });
 
-        let words: Vec<u32> = SPIRV
-            .chunks_exact(4)
-            .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
-            .collect();
+        let words = spirv_words();
         let image_entries = Integrator::IMAGE_KERNELS.iter().map(|i| i.entry_point());
         let restir_entries = RestirPass::ENTRY_POINTS.iter().map(|p| p.entry_point());
         let names: Vec<&'static str> = image_entries.chain(restir_entries.clone()).collect();
@@ -391,6 +398,15 @@ impl GpuBackend {
         };
         backend.ctx.wait()?;
         Ok(backend)
+    }
+
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    /// The accumulation buffer (rgb = sum, a = count per pixel), for the viewer to show.
+    pub fn accumulation_buffer(&self) -> &wgpu::Buffer {
+        &self.accum
     }
 
     fn pixels(&self) -> u64 {

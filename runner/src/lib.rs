@@ -14,3 +14,4 @@ pub mod render;
 pub mod restir;
 pub mod scene;
 pub mod setup;
+pub mod viewer;

@@ -66,6 +66,24 @@ fn progress_bar(total: u64, show: bool) -> ProgressBar {
     bar
 }
 
+/// The parameters of the pass that adds samples `done ..` (at most `samples` of them) to
+/// an accumulation started with `params`. Sample `s` always draws stream `s`; ReSTIR takes
+/// one sample per frame of its pipeline, sample `s` being frame `params.frame + s`, with
+/// the frame before as history. The viewer uses this too, so a still camera converges
+/// to exactly what `render` writes.
+pub fn pass_params(integrator: Integrator, params: &FrameParams, done: u32, samples: u32) -> FrameParams {
+    if integrator == Integrator::Restir {
+        let mut p = FrameParams { frame: params.frame + done, samples: 1, ..*params };
+        if done > 0 {
+            p.restir_flags |= kernels::types::RESTIR_HISTORY_VALID;
+            p.prev_camera = p.camera;
+        }
+        p
+    } else {
+        FrameParams { sample_offset: params.sample_offset + done, samples, ..*params }
+    }
+}
+
 /// Add `spp` samples per pixel to the backend's accumulation, in passes of
 /// `samples_per_pass`. Sample `s` always draws the same random stream, so the split into
 /// passes does not change the image. ReSTIR takes one sample per frame of its pipeline:
@@ -81,20 +99,7 @@ pub fn accumulate(
 ) -> Result<()> {
     let mut done = 0;
     while done < spp {
-        let pass = if integrator == Integrator::Restir {
-            let mut p = FrameParams { frame: params.frame + done, samples: 1, ..*params };
-            if done > 0 {
-                p.restir_flags |= kernels::types::RESTIR_HISTORY_VALID;
-                p.prev_camera = p.camera;
-            }
-            p
-        } else {
-            FrameParams {
-                sample_offset: params.sample_offset + done,
-                samples: samples_per_pass.min(spp - done),
-                ..*params
-            }
-        };
+        let pass = pass_params(integrator, params, done, samples_per_pass.min(spp - done));
         stats.pass_ms.push(backend.pass(integrator, &pass)?);
         for (name, ms) in backend.pass_breakdown() {
             stats.breakdown.push((name, ms));

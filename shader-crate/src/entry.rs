@@ -8,6 +8,7 @@
 //! 3 output reservoirs, 4 previous frame's reservoirs.
 use crate::bvh::{BvhNode, Scene};
 use crate::glam::{UVec3, Vec4};
+use crate::present::{display_colour, fullscreen_triangle, PresentParams};
 use crate::integrators::{ao, path, restir, PixelResult};
 use crate::reservoir::Reservoir;
 use crate::types::{FrameParams, GBufferTexel, Light, Material, Triangle};
@@ -99,3 +100,22 @@ restir_kernel!(restir_shade, |scene, params, x, y, i, rays, g_cur, g_prev, res_i
     let l = if l.is_finite() { l } else { crate::glam::Vec3::ZERO };
     accum[i] += l.extend(1.0);
 });
+
+/// The viewer's present pass: a fullscreen triangle...
+#[spirv(vertex)]
+pub fn present_vs(#[spirv(vertex_index)] vertex: i32, #[spirv(position)] position: &mut Vec4) {
+    *position = fullscreen_triangle(vertex as u32);
+}
+
+/// ...whose fragments show the accumulation buffer.
+#[spirv(fragment)]
+pub fn present_fs(
+    #[spirv(frag_coord)] coord: Vec4,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &PresentParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] accum: &[Vec4],
+    colour: &mut Vec4,
+) {
+    let x = (coord.x as u32).min(params.width - 1);
+    let y = (coord.y as u32).min(params.height - 1);
+    *colour = display_colour(accum[(y * params.width + x) as usize], params).extend(1.0);
+}

@@ -11,6 +11,7 @@ pub mod integrators;
 pub mod intersect;
 pub mod lights;
 pub mod math;
+pub mod present;
 pub mod reservoir;
 pub mod rng;
 pub mod sampling;

@@ -1,0 +1,383 @@
+//! The window (winit), the swapchain (wgpu surface) and the present pass (rust-gpu vertex
+//! and fragment shaders that tonemap the accumulation buffer). Each redraw runs one frame
+//! of the chosen integrator on the GPU backend, accumulating while the camera stands still.
+use std::borrow::Cow;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+use kernels::present::PresentParams;
+use kernels::types::{FrameParams, RESTIR_HISTORY_VALID};
+use winit::application::ApplicationHandler;
+use winit::dpi::PhysicalSize;
+use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, EventLoop};
+use winit::keyboard::{KeyCode, PhysicalKey};
+use winit::window::{Window, WindowId};
+
+use super::controls::{action_for, FlyCamera, Held, Key, ViewState};
+use crate::backend::Backend;
+use crate::bail;
+use crate::cli::ViewArgs;
+use crate::error::{Error, Result};
+use crate::gpu::{adapters_of, instance, spirv_words, GpuBackend, GpuContext};
+use crate::output::{write_image, Image};
+use crate::render::pass_params;
+use crate::scene::Scene;
+use crate::setup::frame_params;
+
+/// Open the window and run until it closes (or `--exit-after` frames).
+pub fn run(args: &ViewArgs, scene: Scene) -> Result<()> {
+    let event_loop = EventLoop::new().map_err(|e| {
+        Error(format!(
+            "cannot open a window ({e}); `view` needs a display (set DISPLAY or WAYLAND_DISPLAY), \
+             `render` does not"
+        ))
+    })?;
+    let params = frame_params(&args.scene, &args.kernel, &scene)?;
+    let hint = scene.camera;
+    let eye = glam::Vec3::from(params.camera.eye);
+    let target = args.scene.target.or(hint.map(|h| h.target)).unwrap_or(eye + glam::Vec3::from(params.camera.forward));
+    let up = args.scene.up.or(hint.map(|h| h.up)).unwrap_or(glam::Vec3::Y);
+    let fov = 2.0 * glam::Vec3::from(params.camera.up).length().atan().to_degrees();
+    let camera = FlyCamera::new(eye, target, up, fov, scene.extent());
+    let mut app = App {
+        args: args.clone(),
+        scene,
+        params,
+        camera,
+        state: ViewState::new(args.kernel.integrator, params.restir_flags, params.spatial_passes),
+        held: Held::default(),
+        drag: None,
+        gfx: None,
+        error: None,
+        last_frame: Instant::now(),
+        last_title: Instant::now(),
+        restart: true,
+        gpu_ms: 0.0,
+        saved: 0,
+    };
+    event_loop.run_app(&mut app).map_err(|e| Error(format!("window event loop failed: {e}")))?;
+    match app.error {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
+}
+
+/// Everything that exists only while the window does.
+struct Gfx {
+    window: Arc<Window>,
+    surface: wgpu::Surface<'static>,
+    config: wgpu::SurfaceConfiguration,
+    backend: GpuBackend,
+    present: wgpu::RenderPipeline,
+    present_params: wgpu::Buffer,
+    present_group: wgpu::BindGroup,
+}
+
+struct App {
+    args: ViewArgs,
+    scene: Scene,
+    params: FrameParams,
+    camera: FlyCamera,
+    state: ViewState,
+    held: Held,
+    drag: Option<(f64, f64)>,
+    gfx: Option<Gfx>,
+    error: Option<Error>,
+    last_frame: Instant,
+    last_title: Instant,
+    restart: bool,
+    gpu_ms: f64,
+    saved: u32,
+}
+
+fn key_of(code: KeyCode) -> Option<Key> {
+    Some(match code {
+        KeyCode::KeyW => Key::W,
+        KeyCode::KeyA => Key::A,
+        KeyCode::KeyS => Key::S,
+        KeyCode::KeyD => Key::D,
+        KeyCode::KeyQ => Key::Q,
+        KeyCode::KeyE => Key::E,
+        KeyCode::KeyR => Key::R,
+        KeyCode::KeyP => Key::P,
+        KeyCode::KeyT => Key::T,
+        KeyCode::KeyB => Key::B,
+        KeyCode::Equal | KeyCode::NumpadAdd => Key::PlusSpatial,
+        KeyCode::Minus | KeyCode::NumpadSubtract => Key::MinusSpatial,
+        KeyCode::Escape => Key::Escape,
+        KeyCode::Digit1 => Key::Digit(1),
+        KeyCode::Digit2 => Key::Digit(2),
+        KeyCode::Digit3 => Key::Digit(3),
+        KeyCode::Digit4 => Key::Digit(4),
+        KeyCode::Digit5 => Key::Digit(5),
+        KeyCode::Digit6 => Key::Digit(6),
+        _ => return None,
+    })
+}
+
+impl App {
+    fn fail(&mut self, event_loop: &ActiveEventLoop, e: Error) {
+        self.error.get_or_insert(e);
+        event_loop.exit();
+    }
+
+    fn create(&mut self, event_loop: &ActiveEventLoop) -> Result<Gfx> {
+        let (w, h) = (self.params.width, self.params.height);
+        let attrs = Window::default_attributes()
+            .with_title("runner view")
+            .with_inner_size(PhysicalSize::new(w, h))
+            .with_resizable(false);
+        let window = Arc::new(event_loop.create_window(attrs).map_err(|e| Error(format!("cannot create a window: {e}")))?);
+        let instance = instance(Some(Box::new(event_loop.owned_display_handle())));
+        let surface = instance
+            .create_surface(window.clone())
+            .map_err(|e| Error(format!("cannot present to the window: {e}")))?;
+        let Some(adapter) = adapters_of(&instance).into_iter().find(|a| a.is_surface_supported(&surface)) else {
+            bail!("no Vulkan adapter can both run the kernels and present to this window");
+        };
+        let ctx = GpuContext::new(&adapter)?;
+        let size = window.inner_size();
+        let (sw, sh) = (size.width.max(1), size.height.max(1));
+        let mut config = surface
+            .get_default_config(&adapter, sw, sh)
+            .ok_or_else(|| Error("the window surface has no usable configuration".into()))?;
+        let caps = surface.get_capabilities(&adapter);
+        // An sRGB swapchain encodes the linear colour the present shader writes.
+        if let Some(f) = caps.formats.iter().find(|f| f.is_srgb()) {
+            config.format = *f;
+        }
+        config.present_mode = wgpu::PresentMode::AutoNoVsync;
+        surface.configure(&ctx.device, &config);
+
+        let device = &ctx.device;
+        // SAFETY: as for the compute kernels (see gpu.rs): rust-gpu output validated at build
+        // time, bindings mirrored below.
+        let module = unsafe {
+            device.create_shader_module_passthrough(wgpu::ShaderModuleDescriptorPassthrough {
+                label: Some("present"),
+                entry_points: Cow::Owned(vec![
+                    wgpu::PassthroughShaderEntryPoint { name: Cow::Borrowed("entry::present_vs"), workgroup_size: (0, 0, 0) },
+                    wgpu::PassthroughShaderEntryPoint { name: Cow::Borrowed("entry::present_fs"), workgroup_size: (0, 0, 0) },
+                ]),
+                spirv: Some(Cow::Owned(spirv_words())),
+                ..Default::default()
+            })
+        };
+        let entry = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: true },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("present"),
+            entries: &[entry(0), entry(1)],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("present"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let present = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("present"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("entry::present_vs"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: Default::default(),
+            depth_stencil: None,
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("entry::present_fs"),
+                compilation_options: Default::default(),
+                targets: &[Some(config.format.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let present_params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("present params"),
+            size: std::mem::size_of::<PresentParams>() as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let backend = GpuBackend::new(ctx, &self.scene, w, h)?;
+        let present_group = backend.context().device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("present"),
+            layout: &layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: present_params.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: backend.accumulation_buffer().as_entire_binding() },
+            ],
+        });
+        eprintln!("viewer: {}", backend.describe());
+        Ok(Gfx { window, surface, config, backend, present, present_params, present_group })
+    }
+
+    /// One frame: integrate, present, update the title, and save when asked.
+    fn frame(&mut self) -> Result<()> {
+        let dt = self.last_frame.elapsed().as_secs_f32();
+        self.last_frame = Instant::now();
+        if self.camera.fly(&self.held, dt) {
+            self.restart = true;
+        }
+        let gfx = self.gfx.as_mut().expect("window exists");
+        let (w, h) = (self.params.width, self.params.height);
+        let mut base = self.params;
+        let prev_camera = base.camera;
+        base.camera = self.camera.camera(w as f32 / h as f32);
+        base.restir_flags = self.state.restir_flags;
+        base.spatial_passes = self.state.spatial_passes;
+        self.params.camera = base.camera;
+        let n = if self.restart { 0 } else { self.state.accumulated };
+        let mut p = pass_params(self.state.integrator, &base, n, 1);
+        // ReSTIR's history survives restarts of the accumulation: it follows the camera
+        // by reprojection from the previous frame.
+        if self.state.frame > 0 {
+            p.restir_flags |= RESTIR_HISTORY_VALID;
+            p.prev_camera = prev_camera;
+        }
+        if self.restart {
+            gfx.backend.clear()?;
+        }
+        self.gpu_ms = gfx.backend.pass(self.state.integrator, &p)?;
+        self.state.frame_done(self.restart);
+        self.restart = false;
+
+        let ctx = gfx.backend.context();
+        let pp = PresentParams { width: w, height: h, exposure: self.args.exposure, tonemap: 0 };
+        ctx.queue.write_buffer(&gfx.present_params, 0, bytemuck::bytes_of(&pp));
+        let frame = match gfx.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
+                gfx.surface.configure(&ctx.device, &gfx.config);
+                return Ok(());
+            }
+            _ => return Ok(()), // timeout or occluded: skip this frame
+        };
+        let view = frame.texture.create_view(&Default::default());
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("present"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
+                })],
+                ..Default::default()
+            });
+            pass.set_pipeline(&gfx.present);
+            pass.set_bind_group(0, &gfx.present_group, &[]);
+            pass.draw(0..3, 0..1);
+        }
+        ctx.queue.submit([encoder.finish()]);
+        gfx.window.pre_present_notify();
+        ctx.queue.present(frame);
+
+        if self.last_title.elapsed().as_secs_f32() > 0.25 {
+            gfx.window.set_title(&self.state.title(w, h, self.gpu_ms));
+            self.last_title = Instant::now();
+        }
+        let done = self.args.exit_after.is_some_and(|n| self.state.frame >= n);
+        if self.state.save_requested || (done && self.args.screenshot.is_some()) {
+            self.state.save_requested = false;
+            let accum = gfx.backend.read_accumulation()?;
+            let image = Image::from_accumulation(w, h, &accum);
+            let path = match &self.args.screenshot {
+                Some(p) if done => p.clone(),
+                _ => {
+                    self.saved += 1;
+                    PathBuf::from(format!("view_{:04}.png", self.saved))
+                }
+            };
+            write_image(&path, &image)?;
+            if path.extension().is_some_and(|e| e == "png") {
+                write_image(&path.with_extension("exr"), &image)?;
+            }
+            eprintln!("saved {} ({} frames accumulated)", path.display(), self.state.accumulated);
+        }
+        if done {
+            self.state.quit = true;
+        }
+        Ok(())
+    }
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.gfx.is_none() {
+            match self.create(event_loop) {
+                Ok(g) => {
+                    g.window.request_redraw();
+                    self.gfx = Some(g);
+                }
+                Err(e) => self.fail(event_loop, e),
+            }
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        match event {
+            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::KeyboardInput { event, .. } => {
+                let PhysicalKey::Code(code) = event.physical_key else { return };
+                let Some(key) = key_of(code) else { return };
+                let down = event.state == ElementState::Pressed;
+                if !self.held.set(key, down) && down && !event.repeat {
+                    if let Some(action) = action_for(key) {
+                        self.restart |= self.state.apply(action, &mut self.camera);
+                    }
+                }
+            }
+            WindowEvent::MouseInput { state, button: MouseButton::Left, .. } => {
+                if state == ElementState::Released {
+                    self.drag = None;
+                } else {
+                    self.drag = Some((f64::NAN, f64::NAN));
+                }
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                if let Some((x, y)) = self.drag {
+                    if x.is_finite() && self.camera.look((position.x - x) as f32, (position.y - y) as f32) {
+                        self.restart = true;
+                    }
+                    self.drag = Some((position.x, position.y));
+                }
+            }
+            WindowEvent::MouseWheel { delta, .. } => {
+                let notches = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => y,
+                    MouseScrollDelta::PixelDelta(p) => (p.y / 40.0) as f32,
+                };
+                self.camera.scroll(notches);
+            }
+            WindowEvent::RedrawRequested => {
+                if let Err(e) = self.frame() {
+                    return self.fail(event_loop, e);
+                }
+                if self.state.quit {
+                    event_loop.exit();
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn about_to_wait(&mut self, _event_loop: &ActiveEventLoop) {
+        if let Some(g) = &self.gfx {
+            g.window.request_redraw();
+        }
+    }
+}
