@@ -114,31 +114,28 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
     let mut pass_ms = Vec::new();
     let mut rays_per_frame = 0;
     let mut per_pass: Vec<(&'static str, Vec<f64>)> = Vec::new();
-    for run in 0..=args.runs {
+    // Warm up for at least a second, not a fixed count: an idle GPU takes a while to raise
+    // its clocks, and short workloads otherwise measure the ramp (seen: 4x on an H100).
+    let warm_start = std::time::Instant::now();
+    while warm_start.elapsed().as_secs_f64() < 1.0 {
+        render(backend.as_mut(), k.integrator, &params, k.spp, 1, false)?;
+    }
+    for _ in 0..args.runs {
         let (_, stats) = render(backend.as_mut(), k.integrator, &params, k.spp, 1, false)?;
-        if run > 0 {
-            frame_ms.push(stats.pass_ms.iter().sum());
-            pass_ms.extend(stats.pass_ms);
-            rays_per_frame = stats.rays;
-            // Sum each pass kind within a frame (spatial may run several times).
-            let frames = k.spp.max(1) as f64;
-            for (name, ms) in stats.breakdown {
-                match per_pass.iter_mut().find(|(n, _)| *n == name) {
-                    Some((_, v)) => v.push(ms / frames),
-                    None => per_pass.push((name, vec![ms / frames])),
-                }
+        frame_ms.push(stats.pass_ms.iter().sum());
+        pass_ms.extend(stats.pass_ms);
+        rays_per_frame = stats.rays;
+        // ReSTIR: this run's time per frame in each pass kind (spatial may run several times).
+        for (name, ms) in stats.breakdown {
+            let per_frame = ms / k.spp.max(1) as f64;
+            match per_pass.iter_mut().find(|(n, _)| *n == name) {
+                Some((_, runs)) if runs.len() == frame_ms.len() => *runs.last_mut().unwrap() += per_frame,
+                Some((_, runs)) => runs.push(per_frame),
+                None => per_pass.push((name, vec![per_frame])),
             }
         }
     }
-    // Per frame: total over the runs of each kind / (runs), as a median of per-run sums.
-    let runs = args.runs as usize;
-    let breakdown = per_pass
-        .into_iter()
-        .map(|(name, v)| {
-            let per_run: Vec<f64> = v.chunks(v.len() / runs).map(|c| c.iter().sum()).collect();
-            (name, median(&per_run))
-        })
-        .collect();
+    let breakdown = per_pass.into_iter().map(|(name, runs)| (name, median(&runs))).collect();
     Ok(BenchReport {
         scene: args
             .scene

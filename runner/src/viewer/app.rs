@@ -56,8 +56,24 @@ pub fn run(args: &ViewArgs, scene: Scene) -> Result<()> {
         restart: true,
         gpu_ms: 0.0,
         saved: 0,
+        frame_times: Vec::new(),
     };
     event_loop.run_app(&mut app).map_err(|e| Error(format!("window event loop failed: {e}")))?;
+    if !app.frame_times.is_empty() {
+        let median = |mut v: Vec<f64>| {
+            v.sort_by(|a, b| a.total_cmp(b));
+            v[v.len() / 2]
+        };
+        let gpu = median(app.frame_times.iter().map(|t| t.0).collect());
+        let wall = median(app.frame_times.iter().map(|t| t.1).collect());
+        eprintln!(
+            "viewer: {:?} {}x{}: {} frames, median {gpu:.3} ms GPU (integrator), {wall:.3} ms per frame in all",
+            app.state.integrator,
+            app.params.width,
+            app.params.height,
+            app.frame_times.len()
+        );
+    }
     match app.error {
         Some(e) => Err(e),
         None => Ok(()),
@@ -90,6 +106,8 @@ struct App {
     restart: bool,
     gpu_ms: f64,
     saved: u32,
+    /// (GPU ms of the integrator, wall ms of the whole frame) of every frame.
+    frame_times: Vec<(f64, f64)>,
 }
 
 fn key_of(code: KeyCode) -> Option<Key> {
@@ -226,6 +244,10 @@ impl App {
 
     /// One frame: integrate, present, update the title, and save when asked.
     fn frame(&mut self) -> Result<()> {
+        let wall_ms = self.last_frame.elapsed().as_secs_f64() * 1e3;
+        if self.state.frame > 0 {
+            self.frame_times.push((self.gpu_ms, wall_ms));
+        }
         let dt = self.last_frame.elapsed().as_secs_f32();
         self.last_frame = Instant::now();
         if self.camera.fly(&self.held, dt) {
