@@ -140,3 +140,31 @@ fn single_triangle_scene() {
     let tris = vec![Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y, 0)];
     agree_with_brute_force(&tris, 5_000, 4);
 }
+
+#[test]
+fn depths_of_built_bvhs_are_measured() {
+    // A balanced-ish scene is shallow; a chain of coincident triangles is refused with a
+    // message instead of being traversed with an overflowing stack.
+    let tris = icosphere(Vec3::ZERO, 1.0, 3, 0);
+    let d2 = runner::accel::bvh2_depth(&build_bvh2(&tris).nodes);
+    let dc = runner::accel::cwbvh_depth(&build_cwbvh(&tris).nodes);
+    assert!((8..40).contains(&d2), "bvh2 depth {d2}");
+    assert!((2..12).contains(&dc) && dc < d2, "cwbvh depth {dc}");
+    assert_eq!(runner::accel::bvh2_depth(&build_bvh2(&tris[..1]).nodes), 1);
+}
+
+#[test]
+fn fuzzer_found_deep_bvh_is_refused_not_mis_traversed() {
+    let data = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/fuzz/regressions/deep_bvh_coincident_triangles")).unwrap();
+    // The default build (CWBVH) renders it; its binary BVH is deeper than BVH2's stack, so
+    // a `traversal-bvh2` build refuses it (check_depth) instead of dropping subtrees.
+    let image = runner::setup::load_and_render_bytes(&data).expect("renders with the default traversal");
+    assert!(image.pixels.iter().all(|p| p.is_finite()));
+    let obj = String::from_utf8_lossy(&data[..data.iter().position(|&b| b == 0xff).unwrap_or(data.len())]).into_owned();
+    let scene = runner::scene::parse_obj_text("deep", &obj, None).unwrap();
+    let d2 = runner::accel::bvh2_depth(&build_bvh2(&scene.triangles).nodes);
+    let dc = runner::accel::cwbvh_depth(&build_cwbvh(&scene.triangles).nodes);
+    eprintln!("{} triangles: BVH2 depth {d2}, CWBVH depth {dc}", scene.triangles.len());
+    assert!(dc <= kernels::bvh::CWBVH_STACK, "cwbvh depth {dc}");
+    assert!(d2 > kernels::bvh::BVH2_STACK, "this input is the deep-BVH2 case (depth {d2})");
+}

@@ -112,6 +112,56 @@ pub fn build(triangles: &[Triangle]) -> Built<kernels::bvh::BvhNode> {
     return build_cwbvh(triangles);
 }
 
+/// Depth of a binary BVH (a lone root is depth 1).
+pub fn bvh2_depth(nodes: &[Bvh2Node]) -> usize {
+    let mut deepest = 0;
+    let mut stack = vec![(0usize, 1usize)];
+    while let Some((i, d)) = stack.pop() {
+        let Some(n) = nodes.get(i) else { continue };
+        deepest = deepest.max(d);
+        if n.count == 0 {
+            stack.push((n.first as usize, d + 1));
+            stack.push((n.first as usize + 1, d + 1));
+        }
+    }
+    deepest
+}
+
+/// Depth of a CWBVH in nodes (a lone root is depth 1).
+pub fn cwbvh_depth(nodes: &[CwBvhNode]) -> usize {
+    let mut deepest = 0;
+    let mut stack = vec![(0usize, 1usize)];
+    while let Some((i, d)) = stack.pop() {
+        let Some(n) = nodes.get(i) else { continue };
+        deepest = deepest.max(d);
+        let imask = n.e_imask >> 24;
+        for k in 0..imask.count_ones() as usize {
+            stack.push((n.child_base_idx as usize + k, d + 1));
+        }
+    }
+    deepest
+}
+
+/// Refuse BVHs deeper than the kernels' fixed traversal stacks, which would otherwise drop
+/// subtrees and render a wrong image without a word. Only pathological geometry (thousands
+/// of coincident triangles, say) gets there.
+pub fn check_depth(nodes: &[kernels::bvh::BvhNode]) -> crate::error::Result<()> {
+    #[cfg(feature = "traversal-brute-force")]
+    let (depth, limit) = (0, 0);
+    #[cfg(all(feature = "traversal-bvh2", not(feature = "traversal-brute-force")))]
+    let (depth, limit) = (bvh2_depth(nodes), kernels::bvh::BVH2_STACK);
+    #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
+    let (depth, limit) = (cwbvh_depth(nodes), kernels::bvh::CWBVH_STACK);
+    if depth > limit {
+        crate::bail!(
+            "the scene's BVH is {depth} levels deep, deeper than the traversal supports ({limit}): \
+             the geometry is pathological (e.g. many coincident or overlapping triangles)"
+        );
+    }
+    let _ = nodes;
+    Ok(())
+}
+
 /// `items` permuted into leaf order.
 pub fn reorder<T: Copy>(items: &[T], order: &[u32]) -> Vec<T> {
     order.iter().map(|&i| items[i as usize]).collect()

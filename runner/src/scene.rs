@@ -58,6 +58,7 @@ impl Scene {
             bail!("triangle refers to material {} of {}", t.material, materials.len());
         }
         let bvh = crate::accel::build(&triangles);
+        crate::accel::check_depth(&bvh.nodes)?;
         let mut triangles = crate::accel::reorder(&triangles, &bvh.order);
         let lights = crate::lights::build_light_table(&mut triangles, &materials);
         Ok(Self {
