@@ -3,7 +3,6 @@
 //! same camera and sample count (the same kernels draw the same random numbers).
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
-use std::time::Duration;
 
 struct Xvfb(Child);
 
@@ -14,21 +13,20 @@ impl Drop for Xvfb {
     }
 }
 
-fn start_xvfb(display: &str) -> Xvfb {
-    let child = Command::new("Xvfb")
-        .args([display, "-screen", "0", "320x240x24", "-nolisten", "tcp"])
-        .stdout(Stdio::null())
+/// Start Xvfb on a free display; `-displayfd` prints its number once it accepts clients,
+/// so concurrent test runs never collide and nothing races the server's start.
+fn start_xvfb() -> (Xvfb, String) {
+    let mut child = Command::new("Xvfb")
+        .args(["-displayfd", "1", "-screen", "0", "320x240x24", "-nolisten", "tcp"])
+        .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
         .expect("Xvfb runs the viewer test: apt-get install xvfb");
-    let socket = PathBuf::from(format!("/tmp/.X11-unix/X{}", &display[1..]));
-    for _ in 0..100 {
-        if socket.exists() {
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    Xvfb(child)
+    let mut line = String::new();
+    let stdout = child.stdout.take().unwrap();
+    std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut line).unwrap();
+    let n: u32 = line.trim().parse().unwrap_or_else(|_| panic!("Xvfb did not report a display: '{line}'"));
+    (Xvfb(child), format!(":{n}"))
 }
 
 fn runner(args: &[&str], display: Option<&str>) -> std::process::Output {
@@ -47,8 +45,8 @@ fn viewer_window_renders_what_render_renders() {
     let shot = dir.join("viewer_shot.png");
     let reference = dir.join("viewer_reference.exr");
     let _ = std::fs::remove_file(&shot);
-    let display = ":93";
-    let _x = start_xvfb(display);
+    let (_x, display) = start_xvfb();
+    let display = display.as_str();
     let common = ["--integrator", "nee", "--width", "64", "--height", "48", "--seed", "5"];
     let mut view = vec!["view", "--exit-after", "6", "--screenshot", shot.to_str().unwrap()];
     view.extend(common);

@@ -8,6 +8,20 @@ use runner::render::open_backend;
 use runner::setup::{frame_params, load_scene, orbit_camera};
 
 fn main() -> ExitCode {
+    // Bad input is reported as errors everywhere we know of; should anything still panic
+    // (a dependency, say), say so on one line rather than with a backtrace.
+    if std::env::var_os("RUST_BACKTRACE").is_none() {
+        std::panic::set_hook(Box::new(|info| {
+            let msg = info
+                .payload()
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| info.payload().downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".into());
+            let at = info.location().map(|l| format!(" at {}:{}", l.file(), l.line())).unwrap_or_default();
+            eprintln!("error: internal error: {msg}{at} (please report it; RUST_BACKTRACE=1 for details)");
+        }));
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render_command(&args),
