@@ -32,10 +32,7 @@ fn render_cpu(scene: &Scene, integrator: Integrator, p: &FrameParams, spp: u32) 
 /// Mean and standard error of the mean over pixels (each pixel is an independent estimate).
 fn pixel_stats(img: &Image) -> (f64, f64) {
     let v: Vec<f64> = img.pixels.iter().map(|p| p.x as f64).collect();
-    let n = v.len() as f64;
-    let mean = v.iter().sum::<f64>() / n;
-    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    (mean, (var / n).sqrt())
+    common::mean_and_standard_error(&v)
 }
 
 /// A closed sphere whose inside emits Le and reflects with albedo ρ: radiance everywhere
@@ -86,10 +83,7 @@ fn seeded_means(scene: &Scene, integrator: Integrator, seeds: u32, spp: u32) -> 
             img.mean().dot(Vec3::splat(1.0 / 3.0)) as f64
         })
         .collect();
-    let n = means.len() as f64;
-    let m = means.iter().sum::<f64>() / n;
-    let var = means.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
-    (m, (var / n).sqrt())
+    common::mean_and_standard_error(&means)
 }
 
 fn integrators_agree(scene: &Scene, seeds: u32, spp: u32) {

@@ -110,10 +110,7 @@ fn image_means(scene: &Scene, integrator: Integrator, runs: u32, spp: u32, max_d
             img.mean().dot(Vec3::splat(1.0 / 3.0)) as f64
         })
         .collect();
-    let n = v.len() as f64;
-    let m = v.iter().sum::<f64>() / n;
-    let var = v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
-    (m, (var / n).sqrt())
+    common::mean_and_standard_error(&v)
 }
 
 fn scenes() -> Vec<(&'static str, Scene)> {
@@ -168,7 +165,6 @@ fn temporal_reuse_rejects_disoccluded_pixels() {
         0,
     )
     .to_vec();
-    let wall_tris = tris.len();
     tris.extend(common::closed_box(Vec3::new(-1.5, -1.5, -3.0), Vec3::new(1.5, 1.5, 0.0), 0));
     // A light above, facing down.
     tris.extend(common::quad(
@@ -181,10 +177,8 @@ fn temporal_reuse_rejects_disoccluded_pixels() {
         1,
     ));
     let materials = vec![common::grey(0.6), Material::new(Vec3::splat(0.5), Vec3::splat(10.0))];
-    // Identify the wall by its material-free geometry: triangles are reordered by the BVH,
-    // so compare positions (the wall lies in z = -10).
+    // Identify the wall by position (triangles are reordered by the BVH): it lies in z = -10.
     let scene = Scene::new(tris, materials).unwrap();
-    let _ = wall_tris;
     let on_wall = |g: &kernels::types::GBufferTexel| g.prim != INVALID && (g.p[2] + 10.0).abs() < 1e-3;
 
     let (w, h) = (64u32, 48u32);

@@ -10,6 +10,14 @@ pub fn grey(albedo: f32) -> Material {
     Material::new(Vec3::splat(albedo), Vec3::ZERO)
 }
 
+/// Mean of independent estimates and the standard error of that mean.
+pub fn mean_and_standard_error(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let var = values.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, (var / n).sqrt())
+}
+
 /// Number of standard errors between an estimate and its expectation.
 pub fn z_score(estimate: f64, expected: f64, std_error: f64) -> f64 {
     (estimate - expected).abs() / std_error
