@@ -168,3 +168,10 @@ fn fuzzer_found_deep_bvh_is_refused_not_mis_traversed() {
     assert!(dc <= kernels::bvh::CWBVH_STACK, "cwbvh depth {dc}");
     assert!(d2 > kernels::bvh::BVH2_STACK, "this input is the deep-BVH2 case (depth {d2})");
 }
+
+#[test]
+fn generated_rocks_scene() {
+    // The benchmark generator's geometry: displaced icospheres over a ground plane.
+    let scene = runner::generate::rocks(5_000);
+    agree_with_brute_force(&scene.triangles, 25_000, 5);
+}
