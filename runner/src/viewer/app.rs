@@ -20,7 +20,7 @@ use crate::backend::Backend;
 use crate::bail;
 use crate::cli::ViewArgs;
 use crate::error::{Error, Result};
-use crate::gpu::{adapters_of, instance, spirv_words, GpuBackend, GpuContext};
+use crate::gpu::{adapters_of, instance, spirv_words, storage_entry, GpuBackend, GpuContext};
 use crate::output::{write_image, Image};
 use crate::render::pass_params;
 use crate::scene::Scene;
@@ -183,16 +183,7 @@ impl App {
                 ..Default::default()
             })
         };
-        let entry = |binding| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::FRAGMENT,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only: true },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
+        let entry = |binding| storage_entry(binding, true, wgpu::ShaderStages::FRAGMENT);
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("present"),
             entries: &[entry(0), entry(1)],
