@@ -145,17 +145,18 @@ pub fn render_sequence(
     let bar = progress_bar(spp as u64 * frames as u64, true);
     let mut stats = RenderStats::default();
     let mut sum: Vec<[f32; 4]> = Vec::new();
-    backend.clear()?;
+    let mut prev_camera = None;
     for f in 0..frames {
         let mut p = *params;
         p.camera = camera_of(f)?;
-        p.prev_camera = if f > 0 { camera_of(f - 1)? } else { p.camera };
+        p.prev_camera = prev_camera.unwrap_or(p.camera);
+        prev_camera = Some(p.camera);
         p.frame = params.frame + f * spp;
         p.sample_offset = params.sample_offset + f * spp;
         if f > 0 {
             p.restir_flags |= kernels::types::RESTIR_HISTORY_VALID;
         }
-        backend.clear()?;
+        backend.clear()?; // each frame accumulates on its own; `average` sums them below
         accumulate(backend, integrator, &p, spp, 1, &bar, &mut stats)?;
         let accum = backend.read_accumulation()?;
         stats.rays += backend.rays_traced()?;
