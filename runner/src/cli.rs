@@ -202,6 +202,22 @@ pub struct ViewArgs {
     /// With --exit-after: save the final image here (PNG also writes an EXR beside it)
     #[arg(long, value_name = "FILE")]
     pub screenshot: Option<PathBuf>,
+    /// How frames reach the window
+    #[arg(long, value_enum, default_value_t = PresentChoice::Auto)]
+    pub present: PresentChoice,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PresentChoice {
+    /// The window's Vulkan swapchain if the GPU can present to this display (checked in a
+    /// child process: some drivers crash on displays they cannot drive, such as NVIDIA's
+    /// on Xvfb), else copy
+    Auto,
+    /// The window's Vulkan swapchain: the GPU draws straight into the window
+    Swapchain,
+    /// Render off-screen on the GPU and copy each frame to the window through the CPU
+    /// (virtual displays and remote X, where the GPU cannot present)
+    Copy,
 }
 
 #[derive(Args, Debug, Clone)]

@@ -9,6 +9,7 @@ pub mod error;
 pub mod generate;
 pub mod gpu;
 pub mod lights;
+pub mod logging;
 pub mod output;
 pub mod render;
 pub mod restir;

@@ -8,6 +8,10 @@ use runner::render::open_backend;
 use runner::setup::{frame_params, load_scene, orbit_camera};
 
 fn main() -> ExitCode {
+    // `view --present auto` asks a child process whether the GPU can present to the display.
+    if std::env::var_os(runner::viewer::present::PROBE_ENV).is_some() {
+        return runner::viewer::present::probe_child();
+    }
     // Bad input is reported as errors everywhere we know of; should anything still panic
     // (a dependency, say), say so on one line rather than with a backtrace.
     if std::env::var_os("RUST_BACKTRACE").is_none() {
@@ -23,6 +27,10 @@ fn main() -> ExitCode {
         }));
     }
     let cli = Cli::parse();
+    if let Err(e) = runner::logging::init_from_env() {
+        eprintln!("error: {e}");
+        return ExitCode::FAILURE;
+    }
     let result = match cli.command {
         Command::Render(args) => render_command(&args),
         Command::Bench(args) => runner::bench::bench(&args).map(|r| {

@@ -16,11 +16,11 @@ use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
 use super::controls::{action_for, FlyCamera, Held, Key, ViewState};
+use super::present::{self, Presenter};
 use crate::backend::Backend;
-use crate::bail;
 use crate::cli::ViewArgs;
 use crate::error::{Error, Result};
-use crate::gpu::{adapters_of, instance, spirv_words, storage_entry, GpuBackend, GpuContext};
+use crate::gpu::{spirv_words, storage_entry, GpuBackend, GpuContext};
 use crate::output::{write_image, Image};
 use crate::render::pass_params;
 use crate::scene::Scene;
@@ -34,6 +34,7 @@ pub fn run(args: &ViewArgs, scene: Scene) -> Result<()> {
              `render` does not"
         ))
     })?;
+    let copy = present::use_copy(args.present)?;
     let params = frame_params(&args.scene, &args.kernel, &scene)?;
     let hint = scene.camera;
     let eye = glam::Vec3::from(params.camera.eye);
@@ -50,6 +51,7 @@ pub fn run(args: &ViewArgs, scene: Scene) -> Result<()> {
         held: Held::default(),
         drag: None,
         gfx: None,
+        copy,
         error: None,
         last_frame: Instant::now(),
         last_title: Instant::now(),
@@ -83,8 +85,7 @@ pub fn run(args: &ViewArgs, scene: Scene) -> Result<()> {
 /// Everything that exists only while the window does.
 struct Gfx {
     window: Arc<Window>,
-    surface: wgpu::Surface<'static>,
-    config: wgpu::SurfaceConfiguration,
+    presenter: Presenter,
     backend: GpuBackend,
     present: wgpu::RenderPipeline,
     present_params: wgpu::Buffer,
@@ -100,6 +101,8 @@ struct App {
     held: Held,
     drag: Option<(f64, f64)>,
     gfx: Option<Gfx>,
+    /// Copy frames to the window through the CPU instead of a swapchain (see `present`).
+    copy: bool,
     error: Option<Error>,
     last_frame: Instant,
     last_title: Instant,
@@ -148,26 +151,9 @@ impl App {
             .with_inner_size(PhysicalSize::new(w, h))
             .with_resizable(false);
         let window = Arc::new(event_loop.create_window(attrs).map_err(|e| Error(format!("cannot create a window: {e}")))?);
-        let instance = instance(Some(Box::new(event_loop.owned_display_handle())));
-        let surface = instance
-            .create_surface(window.clone())
-            .map_err(|e| Error(format!("cannot present to the window: {e}")))?;
-        let Some(adapter) = adapters_of(&instance).into_iter().find(|a| a.is_surface_supported(&surface)) else {
-            bail!("no Vulkan adapter can both run the kernels and present to this window");
-        };
+        let (adapter, pending) = present::open(&window, event_loop, self.copy)?;
         let ctx = GpuContext::new(&adapter)?;
-        let size = window.inner_size();
-        let (sw, sh) = (size.width.max(1), size.height.max(1));
-        let mut config = surface
-            .get_default_config(&adapter, sw, sh)
-            .ok_or_else(|| Error("the window surface has no usable configuration".into()))?;
-        let caps = surface.get_capabilities(&adapter);
-        // An sRGB swapchain encodes the linear colour the present shader writes.
-        if let Some(f) = caps.formats.iter().find(|f| f.is_srgb()) {
-            config.format = *f;
-        }
-        config.present_mode = wgpu::PresentMode::AutoNoVsync;
-        surface.configure(&ctx.device, &config);
+        let presenter = pending.finish(&adapter, &ctx.device, &window, w, h)?;
 
         let device = &ctx.device;
         // SAFETY: as for the compute kernels (see gpu.rs): rust-gpu output validated at build
@@ -209,7 +195,7 @@ impl App {
                 module: &module,
                 entry_point: Some("entry::present_fs"),
                 compilation_options: Default::default(),
-                targets: &[Some(config.format.into())],
+                targets: &[Some(presenter.format().into())],
             }),
             multiview_mask: None,
             cache: None,
@@ -229,8 +215,8 @@ impl App {
                 wgpu::BindGroupEntry { binding: 1, resource: backend.accumulation_buffer().as_entire_binding() },
             ],
         });
-        eprintln!("viewer: {}", backend.describe());
-        Ok(Gfx { window, surface, config, backend, present, present_params, present_group })
+        eprintln!("viewer: {}, {}", backend.describe(), presenter.describe());
+        Ok(Gfx { window, presenter, backend, present, present_params, present_group })
     }
 
     /// One frame: integrate, present, update the title, and save when asked.
@@ -270,34 +256,22 @@ impl App {
         let ctx = gfx.backend.context();
         let pp = PresentParams { width: w, height: h, exposure: self.args.exposure, tonemap: 0 };
         ctx.queue.write_buffer(&gfx.present_params, 0, bytemuck::bytes_of(&pp));
-        let frame = match gfx.surface.get_current_texture() {
-            wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
-            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
-                gfx.surface.configure(&ctx.device, &gfx.config);
-                return Ok(());
-            }
-            _ => return Ok(()), // timeout or occluded: skip this frame
-        };
-        let view = frame.texture.create_view(&Default::default());
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        {
+        let (pipeline, group) = (&gfx.present, &gfx.present_group);
+        gfx.presenter.present(&ctx.device, &ctx.queue, &gfx.window, |encoder, view| {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("present"),
                 color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &view,
+                    view,
                     depth_slice: None,
                     resolve_target: None,
                     ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
                 })],
                 ..Default::default()
             });
-            pass.set_pipeline(&gfx.present);
-            pass.set_bind_group(0, &gfx.present_group, &[]);
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, group, &[]);
             pass.draw(0..3, 0..1);
-        }
-        ctx.queue.submit([encoder.finish()]);
-        gfx.window.pre_present_notify();
-        ctx.queue.present(frame);
+        })?;
 
         if self.last_title.elapsed().as_secs_f32() > 0.25 {
             gfx.window.set_title(&self.state.title(w, h, self.gpu_ms));
