@@ -95,3 +95,23 @@ fn bad_input_fails_with_one_clear_line() {
         assert!(!err.contains("panicked"), "{args:?} panicked:\n{err}");
     }
 }
+
+/// `RUNNER_LOG` turns on the log (wgpu's Vulkan backend included); a bad level is an error.
+#[test]
+fn runner_log_prints_the_log_and_rejects_unknown_levels() {
+    let out = out_path("log.png");
+    let run = |level: &str| {
+        Command::new(env!("CARGO_BIN_EXE_runner"))
+            .args(["render", "--backend", "cpu", "--width", "8", "--height", "8", "--spp", "1", "--out"])
+            .arg(&out)
+            .env("RUNNER_LOG", level)
+            .output()
+            .unwrap()
+    };
+    let o = run("loud");
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("RUNNER_LOG='loud' is not a log level"), "{}", stderr(&o));
+    let o = run("debug");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("[DEBUG "), "no log lines:\n{}", stderr(&o));
+}

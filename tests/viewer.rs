@@ -1,7 +1,7 @@
 //! The interactive viewer under a virtual display (Xvfb; software Vulkan in CI): it opens
 //! a window, renders frames, saves a screenshot, and the screenshot matches `render` of the
 //! same camera and sample count (the same kernels draw the same random numbers).
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 
 struct Xvfb(Child);
@@ -15,9 +15,10 @@ impl Drop for Xvfb {
 
 /// Start Xvfb on a free display; `-displayfd` prints its number once it accepts clients,
 /// so concurrent test runs never collide and nothing races the server's start.
-fn start_xvfb() -> (Xvfb, String) {
+fn start_xvfb(extra: &[&str]) -> (Xvfb, String) {
     let mut child = Command::new("Xvfb")
         .args(["-displayfd", "1", "-screen", "0", "320x240x24", "-nolisten", "tcp"])
+        .args(extra)
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
@@ -40,15 +41,21 @@ fn runner(args: &[&str], display: Option<&str>) -> std::process::Output {
 }
 
 #[test]
-fn viewer_window_renders_what_render_renders() {
+fn viewer_renders_what_render_renders() {
+    for present in ["swapchain", "copy"] {
+        screenshot_matches_render(present);
+    }
+}
+
+fn screenshot_matches_render(present: &str) {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
-    let shot = dir.join("viewer_shot.png");
+    let shot = dir.join(format!("viewer_shot_{present}.png"));
     let reference = dir.join("viewer_reference.exr");
     let _ = std::fs::remove_file(&shot);
-    let (_x, display) = start_xvfb();
+    let (_x, display) = start_xvfb(&[]);
     let display = display.as_str();
     let common = ["--integrator", "nee", "--width", "64", "--height", "48", "--seed", "5"];
-    let mut view = vec!["view", "--exit-after", "6", "--screenshot", shot.to_str().unwrap()];
+    let mut view = vec!["view", "--present", present, "--exit-after", "6", "--screenshot", shot.to_str().unwrap()];
     view.extend(common);
     let o = runner(&view, Some(display));
     let err = String::from_utf8_lossy(&o.stderr);
@@ -62,7 +69,86 @@ fn viewer_window_renders_what_render_renders() {
     let b = runner::output::read_image(&reference).unwrap();
     assert!(a.mean().max_element() > 0.01, "blank screenshot");
     let e = runner::output::compare(&a, &b).unwrap();
-    assert!(e.identical > 0.97, "viewer and render differ: {e:?}");
+    assert!(e.identical > 0.97, "viewer ({present}) and render differ: {e:?}");
+}
+
+/// An XWD image (what `Xvfb -fbdir` keeps its screen in) as 8-bit RGB rows.
+fn read_xwd(path: &Path) -> Option<(usize, usize, Vec<[u8; 3]>)> {
+    let bytes = std::fs::read(path).ok()?;
+    let field = |i: usize| -> Option<usize> { Some(u32::from_be_bytes(bytes.get(4 * i..4 * i + 4)?.try_into().ok()?) as usize) };
+    let (header, width, height, lsb_first) = (field(0)?, field(4)?, field(5)?, field(7)? == 0);
+    let (bits, row, ncolors) = (field(11)?, field(12)?, field(19)?);
+    let masks = [field(14)? as u32, field(15)? as u32, field(16)? as u32];
+    assert_eq!(bits, 32, "the test starts Xvfb with 24-bit colour (32 bits per pixel)");
+    let start = header + 12 * ncolors;
+    let mut pixels = Vec::with_capacity(width * height);
+    for y in 0..height {
+        for x in 0..width {
+            let b: [u8; 4] = bytes.get(start + y * row + 4 * x..start + y * row + 4 * x + 4)?.try_into().ok()?;
+            let v = if lsb_first { u32::from_le_bytes(b) } else { u32::from_be_bytes(b) };
+            pixels.push(masks.map(|m| ((v & m) >> m.trailing_zeros()) as u8));
+        }
+    }
+    Some((width, height, pixels))
+}
+
+/// What the window shows (read from the X server's framebuffer), for both ways to the
+/// window: equal to `render`'s PNG. The scene is chosen so that every frame is the same
+/// image apart from anti-aliased edges: the Cornell box from far away, lit by a coloured sky
+/// (which also checks the channel order), one segment per path (no noise).
+#[test]
+fn window_shows_the_rendered_image() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
+    let common = [
+        "--integrator", "pt", "--max-depth", "1", "--sky", "0.9,0.45,0.1", "--eye", "278,273,-2600",
+        "--target", "278,273,280", "--width", "64", "--height", "48", "--seed", "3",
+    ];
+    let reference = dir.join("window_reference.png");
+    let mut render = vec!["render", "--backend", "gpu", "--spp", "64", "--out", reference.to_str().unwrap()];
+    render.extend(common);
+    let o = runner(&render, None);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let reference = image::open(&reference).unwrap().to_rgb8();
+    let sky = reference.get_pixel(0, 0).0;
+    assert!(sky[0] > sky[1] && sky[1] > sky[2], "sky colour {sky:?}");
+
+    for present in ["swapchain", "copy"] {
+        let fbdir = dir.join(format!("fb_{present}"));
+        std::fs::create_dir_all(&fbdir).unwrap();
+        let (_x, display) = start_xvfb(&["-fbdir", fbdir.to_str().unwrap()]);
+        let mut view = vec!["view", "--present", present, "--exit-after", "100000"];
+        view.extend(common);
+        let mut viewer = Command::new(env!("CARGO_BIN_EXE_runner"))
+            .args(&view)
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .env_remove("WAYLAND_DISPLAY")
+            .env("DISPLAY", &display)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        // Poll the framebuffer until the window's pixels match (they appear after the
+        // window maps and the first frames are drawn).
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+        let mut best = 0.0;
+        while best < 0.97 && std::time::Instant::now() < deadline {
+            std::thread::sleep(std::time::Duration::from_millis(200));
+            assert!(viewer.try_wait().unwrap().is_none(), "the viewer ({present}) exited early");
+            let Some((w, _, screen)) = read_xwd(&fbdir.join("Xvfb_screen0")) else { continue };
+            // No window manager: the window sits at the screen's top-left corner.
+            let close = reference
+                .enumerate_pixels()
+                .filter(|(x, y, p)| {
+                    let s = screen[*y as usize * w + *x as usize];
+                    (0..3).all(|c| (s[c] as i32 - p.0[c] as i32).abs() <= 2)
+                })
+                .count();
+            best = close as f64 / (reference.width() * reference.height()) as f64;
+        }
+        let _ = viewer.kill();
+        let _ = viewer.wait();
+        assert!(best >= 0.97, "the window ({present}) shows a different image: {:.1}% of pixels match", 100.0 * best);
+    }
 }
 
 #[test]

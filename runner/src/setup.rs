@@ -40,6 +40,15 @@ pub fn load_scene(args: &SceneArgs) -> Result<Scene> {
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
+    log::debug!(
+        "scene '{name}': {} triangles, {} emissive, {} materials; {} BVH: {} nodes in {:.1} ms",
+        scene.triangles.len(),
+        scene.lights.len(),
+        scene.materials.len(),
+        kernels::bvh::TRAVERSAL,
+        scene.nodes.len(),
+        scene.bvh_build_time.as_secs_f64() * 1e3
+    );
     Ok(scene)
 }
 

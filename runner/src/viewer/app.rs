@@ -57,6 +57,7 @@ pub fn run(args: &ViewArgs, scene: Scene) -> Result<()> {
         last_title: Instant::now(),
         restart: true,
         gpu_ms: 0.0,
+        present_ms: 0.0,
         saved: 0,
         frame_times: Vec::new(),
     };
@@ -67,9 +68,10 @@ pub fn run(args: &ViewArgs, scene: Scene) -> Result<()> {
             v[v.len() / 2]
         };
         let gpu = median(app.frame_times.iter().map(|t| t.0).collect());
-        let wall = median(app.frame_times.iter().map(|t| t.1).collect());
+        let present = median(app.frame_times.iter().map(|t| t.1).collect());
+        let wall = median(app.frame_times.iter().map(|t| t.2).collect());
         eprintln!(
-            "viewer: {:?} {}x{}: {} frames, median {gpu:.3} ms GPU (integrator), {wall:.3} ms per frame in all",
+            "viewer: {:?} {}x{}: {} frames, median {gpu:.3} ms GPU (integrator), {present:.3} ms presenting, {wall:.3} ms per frame in all",
             app.state.integrator,
             app.params.width,
             app.params.height,
@@ -109,8 +111,10 @@ struct App {
     restart: bool,
     gpu_ms: f64,
     saved: u32,
-    /// (GPU ms of the integrator, wall ms of the whole frame) of every frame.
-    frame_times: Vec<(f64, f64)>,
+    /// Wall ms of the last frame's presentation (present pass, and the copy if copying).
+    present_ms: f64,
+    /// (GPU ms of the integrator, wall ms presenting, wall ms of the whole frame) of every frame.
+    frame_times: Vec<(f64, f64, f64)>,
 }
 
 fn key_of(code: KeyCode) -> Option<Key> {
@@ -223,7 +227,7 @@ impl App {
     fn frame(&mut self) -> Result<()> {
         let wall_ms = self.last_frame.elapsed().as_secs_f64() * 1e3;
         if self.state.frame > 0 {
-            self.frame_times.push((self.gpu_ms, wall_ms));
+            self.frame_times.push((self.gpu_ms, self.present_ms, wall_ms));
         }
         let dt = self.last_frame.elapsed().as_secs_f32();
         self.last_frame = Instant::now();
@@ -257,6 +261,7 @@ impl App {
         let pp = PresentParams { width: w, height: h, exposure: self.args.exposure, tonemap: 0 };
         ctx.queue.write_buffer(&gfx.present_params, 0, bytemuck::bytes_of(&pp));
         let (pipeline, group) = (&gfx.present, &gfx.present_group);
+        let present_start = Instant::now();
         gfx.presenter.present(&ctx.device, &ctx.queue, &gfx.window, |encoder, view| {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("present"),
@@ -272,6 +277,7 @@ impl App {
             pass.set_bind_group(0, group, &[]);
             pass.draw(0..3, 0..1);
         })?;
+        self.present_ms = present_start.elapsed().as_secs_f64() * 1e3;
 
         if self.last_title.elapsed().as_secs_f32() > 0.25 {
             gfx.window.set_title(&self.state.title(w, h, self.gpu_ms));

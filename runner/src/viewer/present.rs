@@ -299,20 +299,15 @@ impl CopyTarget {
         {
             let bytes = slice.get_mapped_range().map_err(|e| Error(format!("cannot read the frame back: {e}")))?;
             let (ww, wh) = (ww.get() as usize, wh.get() as usize);
-            for y in 0..wh {
-                let out = &mut buffer[y * ww..(y + 1) * ww];
-                if y >= h as usize {
-                    out.fill(0);
-                    continue;
+            let (w, h) = (w as usize, h as usize);
+            for (y, out) in buffer.chunks_exact_mut(ww).take(wh).enumerate() {
+                let shown = if y < h { w.min(ww) } else { 0 };
+                let row = &bytes[y.min(h - 1) * self.row_bytes as usize..][..4 * shown];
+                // softbuffer's pixels are 0x00RRGGBB.
+                for (px, rgba) in out[..shown].iter_mut().zip(row.chunks_exact(4)) {
+                    *px = u32::from_be_bytes([0, rgba[0], rgba[1], rgba[2]]);
                 }
-                let row = &bytes[y * self.row_bytes as usize..][..4 * w as usize];
-                for (x, px) in out.iter_mut().enumerate() {
-                    // softbuffer's pixels are 0x00RRGGBB.
-                    *px = match row.get(4 * x..4 * x + 3) {
-                        Some(&[r, g, b]) => (r as u32) << 16 | (g as u32) << 8 | b as u32,
-                        _ => 0,
-                    };
-                }
+                out[shown..].fill(0);
             }
         }
         self.readback.unmap();
