@@ -175,3 +175,56 @@ fn generated_rocks_scene() {
     let scene = runner::generate::rocks(5_000);
     agree_with_brute_force(&scene.triangles, 25_000, 5);
 }
+
+/// CWBVH closest-hit traversal is only fast if it visits a node's children front to back:
+/// obvhs puts them in slots by direction and the traversal turns slot ⊕ octant into the
+/// popping order. For every interior node of the rocks scene and each of the 8 diagonal
+/// directions, count how often the child popped first is the nearest along that direction
+/// (children's box centres ranked by d·centre). obvhs assigns slots greedily and nodes with
+/// few children leave most slots empty, so this is not 100%: 58% on this scene, against 34%
+/// with the octant's x and z bits swapped (a bug this test caught), and about 1/k for an
+/// arbitrary order of k children.
+#[test]
+fn cwbvh_children_are_popped_front_to_back() {
+    let scene = runner::generate::rocks(50_000);
+    let built = build_cwbvh(&scene.triangles);
+    let byte = |w: [u32; 2], i: usize| (w[i / 4] >> (8 * (i % 4))) & 0xff;
+    let (mut nearest_first, mut cases) = (0u32, 0u32);
+    for node in &built.nodes {
+        // Interior children: meta = 24 + slot; box centres in the node's quantised grid,
+        // scaled back per axis by the node's exponents (ranks along d need true lengths).
+        let e = node.e_imask;
+        let scale = Vec3::new(
+            f32::from_bits((e & 0xff) << 23),
+            f32::from_bits(((e >> 8) & 0xff) << 23),
+            f32::from_bits(((e >> 16) & 0xff) << 23),
+        );
+        let children: Vec<(u32, Vec3)> = (0..8)
+            .filter(|&i| byte(node.child_meta, i) & 0x18 == 0x18)
+            .map(|i| {
+                let lo = Vec3::new(byte(node.child_min_x, i) as f32, byte(node.child_min_y, i) as f32, byte(node.child_min_z, i) as f32);
+                let hi = Vec3::new(byte(node.child_max_x, i) as f32, byte(node.child_max_y, i) as f32, byte(node.child_max_z, i) as f32);
+                (byte(node.child_meta, i) & 7, (lo + hi) * 0.5 * scale)
+            })
+            .collect();
+        if children.len() < 2 {
+            continue;
+        }
+        for oct in 0..8 {
+            let d = Vec3::new(
+                if oct & 4 != 0 { -1.0 } else { 1.0 },
+                if oct & 2 != 0 { -1.0 } else { 1.0 },
+                if oct & 1 != 0 { -1.0 } else { 1.0 },
+            );
+            let oct_inv = kernels::bvh::cwbvh_octant_inv(d);
+            let first = children.iter().max_by_key(|(slot, _)| slot ^ oct_inv).unwrap();
+            let nearest = children.iter().map(|(_, c)| c.dot(d)).fold(f32::INFINITY, f32::min);
+            nearest_first += (first.1.dot(d) <= nearest) as u32;
+            cases += 1;
+        }
+    }
+    let share = nearest_first as f64 / cases as f64;
+    eprintln!("nearest child popped first in {:.1}% of {cases} (node, direction) cases", 100.0 * share);
+    assert!(cases > 1000, "too few interior nodes: {cases}");
+    assert!(share > 0.5, "children are not visited front to back: {:.1}%", 100.0 * share);
+}

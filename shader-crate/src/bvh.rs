@@ -178,20 +178,90 @@ pub fn bvh2_traverse(
     hit
 }
 
-/// Byte `i` (0..8) of a little-endian pair of words.
-fn byte8(words: [u32; 2], i: u32) -> u32 {
-    let w = if i < 4 { words[0] } else { words[1] };
-    (w >> ((i & 3) * 8)) & 0xff
-}
-
 /// Index of the highest set bit (x != 0).
 fn first_bit_high(x: u32) -> u32 {
     31 - x.leading_zeros()
 }
 
+/// 7 − the ray's octant, in the bit order obvhs assigns child slots by (x: bit 2, y: bit 1,
+/// z: bit 0). Slot XOR this is the child's traversal priority: popping the highest first
+/// visits the children front to back.
+pub fn cwbvh_octant_inv(dir: Vec3) -> u32 {
+    let oct = (((dir.x < 0.0) as u32) << 2) | (((dir.y < 0.0) as u32) << 1) | (dir.z < 0.0) as u32;
+    7 - oct
+}
+
+/// 1/d per component, with ±2^63 where d is too small to invert: finite slopes keep the
+/// quantised slab test free of 0·∞ = NaN for axis-parallel rays.
+fn safe_recip(d: Vec3) -> Vec3 {
+    let r = |x: f32| {
+        if x > 1e-18 || x < -1e-18 {
+            1.0 / x
+        } else if x.to_bits() >> 31 != 0 {
+            -9.223372e18
+        } else {
+            9.223372e18
+        }
+    };
+    Vec3::new(r(d.x), r(d.y), r(d.z))
+}
+
+/// (near, far) plane words of one axis: where the ray runs towards -axis, the box's max
+/// plane is the one it enters by.
+fn near_far(min: u32, max: u32, negative: bool) -> (u32, u32) {
+    if negative {
+        (max, min)
+    } else {
+        (min, max)
+    }
+}
+
+/// Ray transformed into a CWBVH node's quantised grid: t = q · slope + offset per axis.
+struct NodeRay {
+    slope: Vec3,
+    offset: Vec3,
+    negative: [bool; 3],
+    oct_inv: u32,
+    t_max: f32,
+}
+
+/// Hit bits (see [`cwbvh_node_hits`]) of the 4 children whose bytes are in one word of
+/// each of the node's child arrays (half 0: children 0–3, half 1: children 4–7).
+fn cwbvh_half_hits(ray: &NodeRay, meta4: u32, x: (u32, u32), y: (u32, u32), z: (u32, u32)) -> u32 {
+    let (nx, fx) = near_far(x.0, x.1, ray.negative[0]);
+    let (ny, fy) = near_far(y.0, y.1, ray.negative[1]);
+    let (nz, fz) = near_far(z.0, z.1, ray.negative[2]);
+    let mut mask = 0u32;
+    let mut shift = 0u32;
+    while shift < 32 {
+        let meta = (meta4 >> shift) & 0xff;
+        if meta != 0 {
+            let q = |w: u32| ((w >> shift) & 0xff) as f32;
+            let near = Vec3::new(q(nx), q(ny), q(nz)) * ray.slope + ray.offset;
+            let far = Vec3::new(q(fx), q(fy), q(fz)) * ray.slope + ray.offset;
+            let t_near = near.max_element().max(0.0);
+            let t_far = far.min_element().min(ray.t_max);
+            if t_near <= t_far {
+                if meta & 0x18 == 0x18 {
+                    // Interior child: meta = 24 + slot. XOR with the ray octant orders the
+                    // children front to back when popped highest bit first.
+                    mask |= 1 << ((meta & 31) ^ ray.oct_inv);
+                } else {
+                    // Leaf child: unary triangle count in the top 3 bits, offset below.
+                    mask |= (meta >> 5) << (meta & 31);
+                }
+            }
+        }
+        shift += 8;
+    }
+    mask
+}
+
 /// Intersect the ray with the 8 quantised child boxes of a CWBVH node. Returns the hit
 /// mask in the paper's layout: high byte = interior children hit (bit 24 + traversal
-/// priority), low 24 bits = triangles of the leaf children hit.
+/// priority), low 24 bits = triangles of the leaf children hit. The near and far planes
+/// are picked once per node from the ray's direction signs, and the child bytes are
+/// decoded a word (4 children) at a time.
 fn cwbvh_node_hits(node: &CwBvhNode, origin: Vec3, inv_dir: Vec3, oct_inv: u32, t_max: f32) -> u32 {
     // Child box = p + 2^(e - 127) · q: transform the ray into the node's quantised grid.
     let e = node.e_imask;
@@ -200,41 +270,18 @@ fn cwbvh_node_hits(node: &CwBvhNode, origin: Vec3, inv_dir: Vec3, oct_inv: u32, 
         f32::from_bits(((e >> 8) & 0xff) << 23),
         f32::from_bits(((e >> 16) & 0xff) << 23),
     );
-    let adj_inv = scale * inv_dir;
-    let adj_origin = (vec3(node.p) - origin) * inv_dir;
-    let mut mask = 0u32;
-    let mut i = 0u32;
-    while i < 8 {
-        let meta = byte8(node.child_meta, i);
-        if meta != 0 {
-            let lo = Vec3::new(
-                byte8(node.child_min_x, i) as f32,
-                byte8(node.child_min_y, i) as f32,
-                byte8(node.child_min_z, i) as f32,
-            );
-            let hi = Vec3::new(
-                byte8(node.child_max_x, i) as f32,
-                byte8(node.child_max_y, i) as f32,
-                byte8(node.child_max_z, i) as f32,
-            );
-            let t0 = lo * adj_inv + adj_origin;
-            let t1 = hi * adj_inv + adj_origin;
-            let t_near = t0.min(t1).max_element().max(0.0);
-            let t_far = t0.max(t1).min_element().min(t_max);
-            if t_near <= t_far {
-                if meta & 0x18 == 0x18 {
-                    // Interior child: meta = 24 + slot. XOR with the ray octant orders the
-                    // children front to back when popped highest bit first.
-                    mask |= 1 << ((meta & 31) ^ oct_inv);
-                } else {
-                    // Leaf child: unary triangle count in the top 3 bits, offset below.
-                    mask |= (meta >> 5) << (meta & 31);
-                }
-            }
-        }
-        i += 1;
-    }
-    mask
+    let ray = NodeRay {
+        slope: scale * inv_dir,
+        offset: (vec3(node.p) - origin) * inv_dir,
+        negative: [inv_dir.x < 0.0, inv_dir.y < 0.0, inv_dir.z < 0.0],
+        oct_inv,
+        t_max,
+    };
+    let (m, n) = (node.child_min_x, node.child_max_x);
+    let (k, l) = (node.child_min_y, node.child_max_y);
+    let (i, j) = (node.child_min_z, node.child_max_z);
+    cwbvh_half_hits(&ray, node.child_meta[0], (m[0], n[0]), (k[0], l[0]), (i[0], j[0]))
+        | cwbvh_half_hits(&ray, node.child_meta[1], (m[1], n[1]), (k[1], l[1]), (i[1], j[1]))
 }
 
 /// Stack traversal of obvhs's CWBVH (Ylitie, Karras, Laine 2017, Algorithm 1): a stack of
@@ -247,13 +294,12 @@ pub fn cwbvh_traverse(
     any: bool,
 ) -> Hit {
     let tester = TriangleTester::new(ray);
-    let inv_dir = ray.dir.recip();
+    let inv_dir = safe_recip(ray.dir);
     let mut hit = Hit::none(t_max);
     if nodes.is_empty() {
         return hit;
     }
-    let oct = (ray.dir.x < 0.0) as u32 | (((ray.dir.y < 0.0) as u32) << 1) | (((ray.dir.z < 0.0) as u32) << 2);
-    let oct_inv = 7 - oct;
+    let oct_inv = cwbvh_octant_inv(ray.dir);
     let mut stack_base = [0u32; CWBVH_STACK];
     let mut stack_bits = [0u32; CWBVH_STACK];
     let mut sp = 0usize;
