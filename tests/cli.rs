@@ -115,3 +115,36 @@ fn runner_log_prints_the_log_and_rejects_unknown_levels() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("[DEBUG "), "no log lines:\n{}", stderr(&o));
 }
+
+/// `bench` counts one frame's rays and times the frames: on a plane that fills the view
+/// every camera sample hits and casts all its AO rays, so a frame traces exactly
+/// w·h·spp·(1 + ao-rays) rays; rays/s is that over the median frame time.
+#[test]
+fn bench_counts_the_rays_of_one_frame() {
+    let plane = out_path("bench_plane.obj");
+    std::fs::write(&plane, "v -1000 0 -1000\nv 1000 0 -1000\nv 1000 0 1000\nv -1000 0 1000\nf 1 3 2\nf 1 4 3\n").unwrap();
+    let o = runner(&[
+        "bench", "--scene", plane.to_str().unwrap(), "--eye", "0,5,0", "--target", "0,0,0.001", "--backend", "cpu",
+        "--width", "32", "--height", "24", "--spp", "2", "--ao-rays", "3", "--runs", "3", "--warmup", "0", "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json = String::from_utf8_lossy(&o.stdout).into_owned();
+    let field = |name: &str| -> f64 {
+        let at = json.find(&format!("\"{name}\":")).unwrap_or_else(|| panic!("no {name} in {json}"));
+        let rest = &json[at + name.len() + 3..];
+        rest[..rest.find([',', '}']).unwrap()].parse().unwrap()
+    };
+    assert_eq!(field("rays_per_frame"), (32 * 24 * 2 * (1 + 3)) as f64);
+    let (min, median) = (field("frame_ms_min"), field("frame_ms_median"));
+    assert!(0.0 < min && min <= median, "{json}");
+    // Two passes of one sample each per frame.
+    assert!(field("pass_ms_min") <= median / 2.0 + 1e-3, "{json}");
+    let rate = field("rays_per_second");
+    assert!((rate - 6144.0 / (median * 1e-3)).abs() < 1e-3 * rate, "{json}");
+
+    for bad in ["--warmup=-1", "--warmup=nan", "--runs=0"] {
+        let o = runner(&["bench", "--backend", "cpu", "--width", "8", "--height", "8", bad]);
+        assert_eq!(o.status.code(), Some(1), "{bad}");
+        assert!(stderr(&o).contains("error:") && !stderr(&o).contains("panicked"), "{bad}: {}", stderr(&o));
+    }
+}

@@ -6,7 +6,9 @@ use std::fmt::Write as _;
 
 use crate::cli::BenchArgs;
 use crate::error::Result;
-use crate::render::{open_backend, render};
+use indicatif::ProgressBar;
+
+use crate::render::{open_backend, render_passes};
 use crate::setup::{frame_params, load_scene};
 
 #[derive(Clone, Debug)]
@@ -106,25 +108,31 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
     if args.runs == 0 {
         crate::bail!("--runs must be at least 1");
     }
+    if !(args.warmup >= 0.0 && args.warmup <= 600.0) {
+        crate::bail!("--warmup must be between 0 and 600 seconds");
+    }
     let scene = load_scene(&args.scene)?;
     let params = frame_params(&args.scene, &args.kernel, &scene)?;
     let mut backend = open_backend(args.kernel.backend, &scene, params.width, params.height)?;
     let k = &args.kernel;
     let mut frame_ms = Vec::new();
     let mut pass_ms = Vec::new();
-    let mut rays_per_frame = 0;
     let mut per_pass: Vec<(&'static str, Vec<f64>)> = Vec::new();
-    // Warm up for at least a second, not a fixed count: an idle GPU takes a while to raise
-    // its clocks, and short workloads otherwise measure the ramp (seen: 4x on an H100).
+    // Warm up for a time, not a fixed count: an idle GPU takes a while to raise its clocks,
+    // and short workloads otherwise measure the ramp (seen: 4x on an H100). Nothing is read
+    // back between frames, so that the GPU stays busy (see `render_passes`).
+    let quiet = ProgressBar::hidden();
     let warm_start = std::time::Instant::now();
-    while warm_start.elapsed().as_secs_f64() < 1.0 {
-        render(backend.as_mut(), k.integrator, &params, k.spp, 1, false)?;
+    loop {
+        render_passes(backend.as_mut(), k.integrator, &params, k.spp, 1, &quiet)?;
+        if warm_start.elapsed().as_secs_f64() >= args.warmup {
+            break;
+        }
     }
     for _ in 0..args.runs {
-        let (_, stats) = render(backend.as_mut(), k.integrator, &params, k.spp, 1, false)?;
+        let stats = render_passes(backend.as_mut(), k.integrator, &params, k.spp, 1, &quiet)?;
         frame_ms.push(stats.pass_ms.iter().sum());
         pass_ms.extend(stats.pass_ms);
-        rays_per_frame = stats.rays;
         // ReSTIR: this run's time per frame in each pass kind (spatial may run several times).
         for (name, ms) in stats.breakdown {
             let per_frame = ms / k.spp.max(1) as f64;
@@ -135,6 +143,8 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
             }
         }
     }
+    // Rays of the last run (the count restarts with each run's clear).
+    let rays_per_frame = backend.rays_traced()?;
     let breakdown = per_pass.into_iter().map(|(name, runs)| (name, median(&runs))).collect();
     Ok(BenchReport {
         scene: args

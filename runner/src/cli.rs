@@ -179,9 +179,13 @@ pub struct BenchArgs {
     pub scene: SceneArgs,
     #[command(flatten)]
     pub kernel: KernelArgs,
-    /// Timed renders (after one untimed warm-up)
+    /// Timed renders (after the warm-up)
     #[arg(long, default_value_t = 5, value_name = "N")]
     pub runs: u32,
+    /// Untimed rendering before the timed runs, in seconds (at least one render): an idle
+    /// GPU needs a while to raise its clocks
+    #[arg(long, default_value_t = 1.0, value_name = "SECONDS")]
+    pub warmup: f64,
     /// Print one JSON object instead of the table
     #[arg(long)]
     pub json: bool,
