@@ -4,11 +4,13 @@
 //! traced by the kernels themselves.
 use std::fmt::Write as _;
 
-use crate::cli::BenchArgs;
-use crate::error::Result;
 use indicatif::ProgressBar;
+use kernels::types::FrameParams;
 
-use crate::render::{open_backend, render_passes};
+use crate::backend::Backend;
+use crate::cli::{BenchArgs, KernelArgs};
+use crate::error::Result;
+use crate::render::{accumulate, open_backend, RenderStats};
 use crate::setup::{frame_params, load_scene};
 
 #[derive(Clone, Debug)]
@@ -104,6 +106,16 @@ impl BenchReport {
     }
 }
 
+/// One timed frame: the GPU work of `render` without reading anything back. Reading the
+/// image back after every frame left the GPU idle most of the time, and an H100 then lowers
+/// its clocks within seconds (seen: 1980 → 420 MHz, timestamps up to 5x longer).
+fn frame(backend: &mut dyn Backend, k: &KernelArgs, params: &FrameParams) -> Result<RenderStats> {
+    backend.clear()?;
+    let mut stats = RenderStats::default();
+    accumulate(backend, k.integrator, params, k.spp, 1, &ProgressBar::hidden(), &mut stats)?;
+    Ok(stats)
+}
+
 pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
     if args.runs == 0 {
         crate::bail!("--runs must be at least 1");
@@ -119,18 +131,16 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
     let mut pass_ms = Vec::new();
     let mut per_pass: Vec<(&'static str, Vec<f64>)> = Vec::new();
     // Warm up for a time, not a fixed count: an idle GPU takes a while to raise its clocks,
-    // and short workloads otherwise measure the ramp (seen: 4x on an H100). Nothing is read
-    // back between frames, so that the GPU stays busy (see `render_passes`).
-    let quiet = ProgressBar::hidden();
+    // and short workloads otherwise measure the ramp (seen: 4x on an H100).
     let warm_start = std::time::Instant::now();
     loop {
-        render_passes(backend.as_mut(), k.integrator, &params, k.spp, 1, &quiet)?;
+        frame(backend.as_mut(), k, &params)?;
         if warm_start.elapsed().as_secs_f64() >= args.warmup {
             break;
         }
     }
     for _ in 0..args.runs {
-        let stats = render_passes(backend.as_mut(), k.integrator, &params, k.spp, 1, &quiet)?;
+        let stats = frame(backend.as_mut(), k, &params)?;
         frame_ms.push(stats.pass_ms.iter().sum());
         pass_ms.extend(stats.pass_ms);
         // ReSTIR: this run's time per frame in each pass kind (spatial may run several times).

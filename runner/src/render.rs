@@ -120,28 +120,13 @@ pub fn render(
     show_progress: bool,
 ) -> Result<(Image, RenderStats)> {
     let bar = progress_bar(spp as u64, show_progress);
-    let mut stats = render_passes(backend, integrator, params, spp, samples_per_pass, &bar)?;
+    backend.clear()?;
+    let mut stats = RenderStats::default();
+    accumulate(backend, integrator, params, spp, samples_per_pass, &bar, &mut stats)?;
     bar.finish_and_clear();
     let accum = backend.read_accumulation()?;
     stats.rays = backend.rays_traced()?;
     Ok((Image::from_accumulation(params.width, params.height, &accum), stats))
-}
-
-/// The GPU work of [`render`] without reading anything back (`stats.rays` stays 0): what
-/// `bench` times. Reading the image back after every frame would leave the GPU idle most of
-/// the time, and an H100 then lowers its clocks within seconds (seen: 1980 → 420 MHz).
-pub fn render_passes(
-    backend: &mut dyn Backend,
-    integrator: Integrator,
-    params: &FrameParams,
-    spp: u32,
-    samples_per_pass: u32,
-    bar: &ProgressBar,
-) -> Result<RenderStats> {
-    backend.clear()?;
-    let mut stats = RenderStats::default();
-    accumulate(backend, integrator, params, spp, samples_per_pass, bar, &mut stats)?;
-    Ok(stats)
 }
 
 /// Render a sequence of frames whose cameras come from `camera_of(frame)`. With
