@@ -159,3 +159,22 @@ fn viewer_without_a_display_fails_cleanly() {
     assert!(err.contains("error:") && err.contains("display"), "{err}");
     assert!(!err.contains("panicked"), "{err}");
 }
+
+#[test]
+fn viewer_refuses_what_it_cannot_do_before_opening_a_window() {
+    let shot = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("never.png");
+    let cases: &[(&[&str], &str)] = &[
+        (&["view", "--backend", "cpu"], "--backend cpu"),
+        (&["view", "--screenshot", "/nonexistent-dir/x.png", "--exit-after", "1"], "does not exist"),
+        (&["view", "--screenshot", shot.to_str().unwrap()], "--exit-after"),
+        (&["view", "--present", "sideways"], "sideways"),
+    ];
+    for (args, needle) in cases {
+        // With a display name that cannot be opened: the checks come first.
+        let o = runner(args, Some(":987654"));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(if needle == &"sideways" { 2 } else { 1 }), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: stderr lacks '{needle}':\n{err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+}

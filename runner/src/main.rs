@@ -38,7 +38,9 @@ fn main() -> ExitCode {
         }),
         Command::Generate(args) => generate_command(&args),
         Command::Compare(args) => compare_command(&args),
-        Command::View(args) => load_scene(&args.scene).and_then(|scene| runner::viewer::app::run(&args, scene)),
+        Command::View(args) => runner::viewer::app::check_args(&args)
+            .and_then(|()| load_scene(&args.scene))
+            .and_then(|scene| runner::viewer::app::run(&args, scene)),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -18,13 +18,28 @@ use winit::window::{Window, WindowId};
 use super::controls::{action_for, FlyCamera, Held, Key, ViewState};
 use super::present::{self, Presenter};
 use crate::backend::Backend;
-use crate::cli::ViewArgs;
+use crate::bail;
+use crate::cli::{BackendChoice, ViewArgs};
 use crate::error::{Error, Result};
 use crate::gpu::{spirv_words, storage_entry, GpuBackend, GpuContext};
-use crate::output::{write_image, Image};
+use crate::output::{check_writable, write_image, Image};
 use crate::render::pass_params;
 use crate::scene::Scene;
 use crate::setup::frame_params;
+
+/// Refuse what `view` cannot do before loading the scene or opening a window.
+pub fn check_args(args: &ViewArgs) -> Result<()> {
+    if args.kernel.backend == BackendChoice::Cpu {
+        bail!("`view` draws with a Vulkan device (a GPU, or lavapipe); --backend cpu is for `render` and `bench`");
+    }
+    if let Some(path) = &args.screenshot {
+        if args.exit_after.is_none() {
+            bail!("--screenshot saves the last frame of --exit-after N; give both (P saves while viewing)");
+        }
+        check_writable(path)?;
+    }
+    Ok(())
+}
 
 /// Open the window and run until it closes (or `--exit-after` frames).
 pub fn run(args: &ViewArgs, scene: Scene) -> Result<()> {
