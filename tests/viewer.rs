@@ -178,3 +178,101 @@ fn viewer_refuses_what_it_cannot_do_before_opening_a_window() {
         assert!(!err.contains("panicked"), "{args:?}: {err}");
     }
 }
+
+/// Type keys into the viewer's window through XTEST (Xvfb has it): `2` switches to path
+/// tracing and restarts the accumulation, `P` saves what has accumulated since, `Esc` quits.
+/// The saved image must be exactly `render --integrator pt` with as many samples as the
+/// viewer reports, so keys, integrator switch, restart and save all work end to end.
+#[test]
+fn keys_switch_the_integrator_save_and_quit() {
+    use std::io::BufRead;
+    use x11rb::connection::Connection;
+    use x11rb::protocol::xproto::{ConnectionExt as _, InputFocus, KEY_PRESS_EVENT, KEY_RELEASE_EVENT, MOTION_NOTIFY_EVENT};
+    use x11rb::protocol::xtest::ConnectionExt as _;
+
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("keys");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let (_x, display) = start_xvfb(&[]);
+    let common = ["--width", "48", "--height", "32", "--seed", "9"];
+    let mut viewer = Command::new(env!("CARGO_BIN_EXE_runner"))
+        .args(["view", "--integrator", "ao"])
+        .args(common)
+        .current_dir(&dir)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .env_remove("WAYLAND_DISPLAY")
+        .env("DISPLAY", &display)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (lines_tx, lines) = std::sync::mpsc::channel::<String>();
+    let stderr = viewer.stderr.take().unwrap();
+    std::thread::spawn(move || {
+        for line in std::io::BufReader::new(stderr).lines().map_while(|l| l.ok()) {
+            if lines_tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let wait_for = |needle: &str| -> String {
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+        while std::time::Instant::now() < deadline {
+            if let Ok(line) = lines.recv_timeout(std::time::Duration::from_millis(100)) {
+                if line.contains(needle) {
+                    return line;
+                }
+            }
+        }
+        panic!("the viewer never printed '{needle}'");
+    };
+    wait_for("viewer: gpu"); // the window and the GPU are up
+
+    let (conn, screen) = x11rb::connect(Some(&display)).unwrap();
+    let root = conn.setup().roots[screen].root;
+    let min = conn.setup().min_keycode;
+    let count = conn.setup().max_keycode - min + 1;
+    let map = conn.get_keyboard_mapping(min, count).unwrap().reply().unwrap();
+    let per = map.keysyms_per_keycode as usize;
+    let keycode = |keysym: u32| -> u8 {
+        let i = map.keysyms.iter().position(|&k| k == keysym).expect("keysym in the keymap");
+        min + (i / per) as u8
+    };
+    // No window manager to give the window the keyboard focus: give it ourselves (the
+    // viewer's is the only window on this server), and put the pointer over it.
+    let children = conn.query_tree(root).unwrap().reply().unwrap().children;
+    let window = *children
+        .iter()
+        .find(|&&w| conn.get_geometry(w).unwrap().reply().is_ok_and(|g| (g.width, g.height) == (48, 32)))
+        .expect("the viewer's 48x32 window");
+    conn.set_input_focus(InputFocus::PARENT, window, x11rb::CURRENT_TIME).unwrap();
+    conn.xtest_fake_input(MOTION_NOTIFY_EVENT, 0, 0, root, 10, 10, 0).unwrap();
+    let tap = |keysym: u32| {
+        let code = keycode(keysym);
+        conn.xtest_fake_input(KEY_PRESS_EVENT, code, 0, root, 0, 0, 0).unwrap();
+        conn.xtest_fake_input(KEY_RELEASE_EVENT, code, 0, root, 0, 0, 0).unwrap();
+        conn.flush().unwrap();
+    };
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    tap(0x32); // '2': pt
+    std::thread::sleep(std::time::Duration::from_millis(800));
+    tap(0x70); // 'p': save
+    let saved = wait_for("saved view_0001.png");
+    tap(0xff1b); // Escape
+    let status = viewer.wait().unwrap();
+    assert!(status.success(), "viewer exited with {status}");
+
+    // "saved view_0001.png (N frames accumulated)"
+    let n: u32 = saved.split('(').nth(1).and_then(|s| s.split_whitespace().next()).and_then(|s| s.parse().ok()).unwrap();
+    assert!(n >= 1, "{saved}");
+    let reference = dir.join("reference.exr");
+    let spp = n.to_string();
+    let mut render = vec!["render", "--backend", "gpu", "--integrator", "pt", "--spp", &spp, "--out", reference.to_str().unwrap()];
+    render.extend(common);
+    let o = runner(&render, None);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let a = runner::output::read_image(&dir.join("view_0001.exr")).unwrap();
+    let b = runner::output::read_image(&reference).unwrap();
+    let e = runner::output::compare(&a, &b).unwrap();
+    assert!(e.identical > 0.97, "after '2' and 'P' the viewer saved something else than pt with {n} spp: {e:?}");
+}
