@@ -287,6 +287,14 @@ pub struct GpuBackend {
     queries: Option<(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
     restir: Option<RestirBuffers>,
     restir_pass_ms: Vec<(&'static str, f64)>,
+    /// Submitted by `submit_pass`, not yet waited for by `finish_pass`.
+    in_flight: Option<InFlight>,
+}
+
+/// A submitted pass (or ReSTIR frame): when it started and the names of its timed passes.
+struct InFlight {
+    start: Instant,
+    passes: Vec<&'static str>,
 }
 
 /// ReSTIR's G-buffers and reservoirs, allocated on the first ReSTIR frame.
@@ -400,6 +408,7 @@ impl GpuBackend {
             queries,
             restir: None,
             restir_pass_ms: Vec::new(),
+            in_flight: None,
         };
         backend.ctx.wait()?;
         Ok(backend)
@@ -479,7 +488,7 @@ impl GpuBackend {
 
     /// One ReSTIR frame: every pass is its own dispatch (and submit, since each may need
     /// its own parameters), timed individually.
-    fn restir_frame(&mut self, params: &FrameParams) -> Result<f64> {
+    fn submit_restir_frame(&mut self, params: &FrameParams) -> Result<()> {
         self.restir_buffers()?;
         let start = Instant::now();
         let st = self.restir.as_mut().expect("allocated above");
@@ -509,10 +518,41 @@ impl GpuBackend {
             self.dispatch(&mut encoder, pass.entry_point(), Some(&group), k as u32);
             self.ctx.queue.submit([encoder.finish()]);
         }
+        self.in_flight = Some(InFlight { start, passes: plan.iter().map(|(p, _)| p.name()).collect() });
+        Ok(())
+    }
+
+    /// Start a pass (a whole frame for ReSTIR) on the GPU without waiting for it, so that the
+    /// caller can work meanwhile (the viewer copies the previous frame to the window);
+    /// `finish_pass` waits and returns its GPU time. `Backend::pass` is the two in a row.
+    pub fn submit_pass(&mut self, integrator: Integrator, params: &FrameParams) -> Result<()> {
+        if self.in_flight.is_some() {
+            bail!("internal: a pass was submitted before the previous one finished");
+        }
+        if integrator == Integrator::Restir {
+            return self.submit_restir_frame(params);
+        }
+        let start = Instant::now();
+        self.ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
+        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+        self.dispatch(&mut encoder, integrator.entry_point(), None, 0);
+        self.ctx.queue.submit([encoder.finish()]);
+        self.in_flight = Some(InFlight { start, passes: Vec::new() });
+        Ok(())
+    }
+
+    /// Wait for the submitted pass; its GPU time in ms (the sum over a ReSTIR frame's passes,
+    /// whose breakdown `pass_breakdown` then reports).
+    pub fn finish_pass(&mut self) -> Result<f64> {
+        let Some(InFlight { start, passes }) = self.in_flight.take() else {
+            bail!("internal: no pass in flight");
+        };
         self.ctx.wait()?;
         let wall_ms = start.elapsed().as_secs_f64() * 1e3;
-        let times = self.pass_times(plan.len() as u32, wall_ms)?;
-        self.restir_pass_ms = plan.iter().map(|(p, _)| p.name()).zip(times.iter().copied()).collect();
+        let times = self.pass_times(passes.len().max(1) as u32, wall_ms)?;
+        if !passes.is_empty() {
+            self.restir_pass_ms = passes.into_iter().zip(times.iter().copied()).collect();
+        }
         Ok(times.iter().sum())
     }
 
@@ -554,17 +594,8 @@ impl Backend for GpuBackend {
     }
 
     fn pass(&mut self, integrator: Integrator, params: &FrameParams) -> Result<f64> {
-        if integrator == Integrator::Restir {
-            return self.restir_frame(params);
-        }
-        let start = Instant::now();
-        self.ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
-        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
-        self.dispatch(&mut encoder, integrator.entry_point(), None, 0);
-        self.ctx.queue.submit([encoder.finish()]);
-        self.ctx.wait()?;
-        let wall_ms = start.elapsed().as_secs_f64() * 1e3;
-        Ok(self.pass_times(1, wall_ms)?[0])
+        self.submit_pass(integrator, params)?;
+        self.finish_pass()
     }
 
     fn pass_breakdown(&self) -> Vec<(&'static str, f64)> {

@@ -161,12 +161,18 @@ pub enum Presenter {
     Copy(CopyTarget),
 }
 
-/// Off-screen colour target and its CPU read-back, for [`Presenter::Copy`].
+/// Off-screen colour target and its CPU read-backs, for [`Presenter::Copy`]. Two
+/// read-backs: frame N is copied into one while frame N−1, in the other, goes to the window
+/// as the GPU works on frame N+1 (see [`Presenter::show_previous`]).
 pub struct CopyTarget {
     window: softbuffer::Surface<Arc<Window>, Arc<Window>>,
     texture: wgpu::Texture,
-    readback: wgpu::Buffer,
-    /// Bytes per row in `readback` (a multiple of 256, as copies require).
+    readbacks: [wgpu::Buffer; 2],
+    /// The read-back the next frame is copied into.
+    next: usize,
+    /// A read-back holding a frame not shown yet, with the submission that fills it.
+    unshown: Option<(usize, wgpu::SubmissionIndex)>,
+    /// Bytes per row in the read-backs (a multiple of 256, as copies require).
     row_bytes: u32,
 }
 
@@ -199,13 +205,22 @@ impl Pending {
                     view_formats: &[],
                 });
                 let row_bytes = (4 * width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-                let readback = device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("copy read-back"),
-                    size: row_bytes as u64 * height as u64,
-                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                });
-                Ok(Presenter::Copy(CopyTarget { window, texture, readback, row_bytes }))
+                let readback = || {
+                    device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some("copy read-back"),
+                        size: row_bytes as u64 * height as u64,
+                        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    })
+                };
+                Ok(Presenter::Copy(CopyTarget {
+                    window,
+                    texture,
+                    readbacks: [readback(), readback()],
+                    next: 0,
+                    unshown: None,
+                    row_bytes,
+                }))
             }
         }
     }
@@ -230,7 +245,18 @@ impl Presenter {
         }
     }
 
-    /// Let `draw` record the present pass into the frame's colour target, then show it.
+    /// Copying: put the previous frame's pixels in the window (a no-op for the swapchain).
+    /// The viewer calls this while the GPU renders the next frame, so the copy through the
+    /// CPU costs frame time only where it takes longer than the GPU's work.
+    pub fn show_previous(&mut self, device: &wgpu::Device, window: &Window) -> Result<()> {
+        match self {
+            Presenter::Swapchain { .. } => Ok(()),
+            Presenter::Copy(target) => target.show_previous(device, window),
+        }
+    }
+
+    /// Let `draw` record the present pass into the frame's colour target, then show it
+    /// (swapchain) or start copying it back (copy; shown by the next `show_previous`).
     pub fn present(
         &mut self,
         device: &wgpu::Device,
@@ -257,7 +283,7 @@ impl Presenter {
                 queue.present(frame);
                 Ok(())
             }
-            Presenter::Copy(target) => target.present(device, queue, window, encoder, draw),
+            Presenter::Copy(target) => target.present(queue, encoder, draw),
         }
     }
 }
@@ -265,41 +291,51 @@ impl Presenter {
 impl CopyTarget {
     fn present(
         &mut self,
-        device: &wgpu::Device,
         queue: &wgpu::Queue,
-        window: &Window,
         mut encoder: wgpu::CommandEncoder,
         draw: impl FnOnce(&mut wgpu::CommandEncoder, &wgpu::TextureView),
     ) -> Result<()> {
-        let (w, h) = (self.texture.width(), self.texture.height());
+        let readback = &self.readbacks[self.next];
         draw(&mut encoder, &self.texture.create_view(&Default::default()));
         encoder.copy_texture_to_buffer(
             self.texture.as_image_copy(),
             wgpu::TexelCopyBufferInfo {
-                buffer: &self.readback,
+                buffer: readback,
                 layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(self.row_bytes), rows_per_image: None },
             },
             self.texture.size(),
         );
-        queue.submit([encoder.finish()]);
-        let slice = self.readback.slice(..);
-        slice.map_async(wgpu::MapMode::Read, |_| {});
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error(format!("GPU error while copying the frame: {e}")))?;
+        let submission = queue.submit([encoder.finish()]);
+        readback.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+        self.unshown = Some((self.next, submission));
+        self.next ^= 1;
+        Ok(())
+    }
 
+    fn show_previous(&mut self, device: &wgpu::Device, window: &Window) -> Result<()> {
+        let Some((index, submission)) = self.unshown.take() else { return Ok(()) };
+        // Wait for that copy only, not for the work submitted after it.
+        device
+            .poll(wgpu::PollType::Wait { submission_index: Some(submission), timeout: None })
+            .map_err(|e| Error(format!("GPU error while copying the frame: {e}")))?;
+        let result = self.put(index, window);
+        self.readbacks[index].unmap();
+        result
+    }
+
+    /// The pixels of mapped read-back `index` into the window.
+    fn put(&mut self, index: usize, window: &Window) -> Result<()> {
+        let (w, h) = (self.texture.width() as usize, self.texture.height() as usize);
         let size = window.inner_size();
         let (Some(ww), Some(wh)) = (NonZeroU32::new(size.width), NonZeroU32::new(size.height)) else {
-            self.readback.unmap();
             return Ok(()); // minimised
         };
         let failed = |e: softbuffer::SoftBufferError| Error(format!("cannot copy to the window: {e}"));
         self.window.resize(ww, wh).map_err(failed)?;
         let mut buffer = self.window.buffer_mut().map_err(failed)?;
         {
-            let bytes = slice.get_mapped_range().map_err(|e| Error(format!("cannot read the frame back: {e}")))?;
+            let bytes = self.readbacks[index].slice(..).get_mapped_range().map_err(|e| Error(format!("cannot read the frame back: {e}")))?;
             let (ww, wh) = (ww.get() as usize, wh.get() as usize);
-            let (w, h) = (w as usize, h as usize);
             for (y, out) in buffer.chunks_exact_mut(ww).take(wh).enumerate() {
                 let shown = if y < h { w.min(ww) } else { 0 };
                 let row = &bytes[y.min(h - 1) * self.row_bytes as usize..][..4 * shown];
@@ -310,7 +346,6 @@ impl CopyTarget {
                 out[shown..].fill(0);
             }
         }
-        self.readback.unmap();
         window.pre_present_notify();
         buffer.present().map_err(failed)
     }
