@@ -30,14 +30,19 @@ fn start_xvfb(extra: &[&str]) -> (Xvfb, String) {
     (Xvfb(child), format!(":{n}"))
 }
 
-fn runner(args: &[&str], display: Option<&str>) -> std::process::Output {
+/// The runner binary with `args`, on X display `display` (none: no display at all).
+fn runner_command(args: &[&str], display: Option<&str>) -> Command {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_runner"));
     cmd.args(args).env("XDG_RUNTIME_DIR", std::env::temp_dir()).env_remove("WAYLAND_DISPLAY");
     match display {
         Some(d) => cmd.env("DISPLAY", d),
         None => cmd.env_remove("DISPLAY"),
     };
-    cmd.output().expect("runner runs")
+    cmd
+}
+
+fn runner(args: &[&str], display: Option<&str>) -> std::process::Output {
+    runner_command(args, display).output().expect("runner runs")
 }
 
 #[test]
@@ -118,11 +123,7 @@ fn window_shows_the_rendered_image() {
         let (_x, display) = start_xvfb(&["-fbdir", fbdir.to_str().unwrap()]);
         let mut view = vec!["view", "--present", present, "--exit-after", "100000"];
         view.extend(common);
-        let mut viewer = Command::new(env!("CARGO_BIN_EXE_runner"))
-            .args(&view)
-            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-            .env_remove("WAYLAND_DISPLAY")
-            .env("DISPLAY", &display)
+        let mut viewer = runner_command(&view, Some(&display))
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
@@ -195,13 +196,10 @@ fn keys_switch_the_integrator_save_and_quit() {
     std::fs::create_dir_all(&dir).unwrap();
     let (_x, display) = start_xvfb(&[]);
     let common = ["--width", "48", "--height", "32", "--seed", "9"];
-    let mut viewer = Command::new(env!("CARGO_BIN_EXE_runner"))
-        .args(["view", "--integrator", "ao"])
-        .args(common)
+    let mut view = vec!["view", "--integrator", "ao"];
+    view.extend(common);
+    let mut viewer = runner_command(&view, Some(&display))
         .current_dir(&dir)
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .env_remove("WAYLAND_DISPLAY")
-        .env("DISPLAY", &display)
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()

@@ -107,9 +107,7 @@ pub fn probe_child() -> std::process::ExitCode {
     fn surface_supported(event_loop: &ActiveEventLoop) -> Result<bool> {
         let attrs = Window::default_attributes().with_visible(false).with_inner_size(winit::dpi::PhysicalSize::new(64, 64));
         let window = Arc::new(event_loop.create_window(attrs).map_err(|e| Error(format!("cannot create a window: {e}")))?);
-        let instance = instance(Some(Box::new(event_loop.owned_display_handle())));
-        let surface = instance.create_surface(window).map_err(|e| Error(format!("cannot make a surface: {e}")))?;
-        Ok(adapters_of(&instance).iter().any(|a| a.is_surface_supported(&surface)))
+        Ok(swapchain_surface(window, event_loop)?.1.is_some())
     }
     let mut probe = Probe(None);
     let outcome = EventLoop::new()
@@ -143,16 +141,24 @@ pub fn open(window: &Arc<Window>, event_loop: &ActiveEventLoop, copy: bool) -> R
         let surface = softbuffer::Surface::new(&context, window.clone()).map_err(|e| Error(format!("cannot copy to the window: {e}")))?;
         return Ok((adapter, Pending::Copy(surface)));
     }
-    log::debug!("creating the Vulkan instance and surface");
-    let instance = instance(Some(Box::new(event_loop.owned_display_handle())));
-    let surface = instance
-        .create_surface(window.clone())
-        .map_err(|e| Error(format!("cannot present to the window: {e}")))?;
-    log::debug!("surface created; asking each adapter whether it can present to it");
-    let Some(adapter) = adapters_of(&instance).into_iter().find(|a| a.is_surface_supported(&surface)) else {
+    let (surface, adapter) = swapchain_surface(window.clone(), event_loop)?;
+    let Some(adapter) = adapter else {
         bail!("no Vulkan adapter can both run the kernels and present to this window (try --present copy)");
     };
     Ok((adapter, Pending::Swapchain(surface)))
+}
+
+/// A Vulkan surface for the window, and the best adapter that runs the kernels and can
+/// present to it, if any (the question that crashes some drivers: see the module docs).
+fn swapchain_surface(window: Arc<Window>, event_loop: &ActiveEventLoop) -> Result<(wgpu::Surface<'static>, Option<wgpu::Adapter>)> {
+    log::debug!("creating the Vulkan instance and surface");
+    let instance = instance(Some(Box::new(event_loop.owned_display_handle())));
+    let surface = instance
+        .create_surface(window)
+        .map_err(|e| Error(format!("cannot present to the window: {e}")))?;
+    log::debug!("surface created; asking each adapter whether it can present to it");
+    let adapter = adapters_of(&instance).into_iter().find(|a| a.is_surface_supported(&surface));
+    Ok((surface, adapter))
 }
 
 /// The frame's way to the window, once the device exists.
@@ -227,7 +233,7 @@ impl Pending {
 }
 
 /// sRGB, so that the hardware encodes the linear colour the present shader writes, as the
-/// swapchain does; the bytes read back are ready for the window.
+/// swapchain does; the bytes read back only need reordering for the window.
 const COPY_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 
 impl Presenter {
