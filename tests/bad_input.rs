@@ -85,7 +85,7 @@ fn missing_or_broken_mtl_warns_and_uses_grey() {
         }
         let lib = if mtl.is_some() { "bad.mtl" } else { "missing.mtl" };
         let obj = write(name, format!("mtllib {lib}\n{TRI}usemtl m\nf 1 2 3\n").as_bytes());
-        let o = render_scene(&obj, &[]);
+        let o = render_scene(&obj, &["--integrator", "ao"]);
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(o.status.success(), "{err}");
         assert!(err.contains("warning: materials of") && err.contains("grey default"), "{err}");
@@ -95,7 +95,7 @@ fn missing_or_broken_mtl_warns_and_uses_grey() {
 #[test]
 fn degenerate_triangles_are_dropped_and_counted() {
     let obj = write("degen.obj", format!("{TRI}v 5 0 0\nf 1 2 3\nf 1 2 4\nf 2 2 3\n").as_bytes());
-    let o = render_scene(&obj, &[]);
+    let o = render_scene(&obj, &["--integrator", "ao"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     assert!(err.contains("dropped 2 degenerate triangle(s)"), "{err}");
@@ -178,7 +178,7 @@ fn no_vulkan_adapter_falls_back_or_fails_as_asked() {
     let o = runner(&args, &env);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
-    assert!(err.contains("no Vulkan adapter found; using the CPU backend"), "{err}");
+    assert!(err.contains("note: no Vulkan adapter found; rendering on the CPU backend"), "{err}");
     let mut gpu = args.to_vec();
     gpu.extend(["--backend", "gpu"]);
     assert_fails_with(&runner(&gpu, &env), "no Vulkan adapter");

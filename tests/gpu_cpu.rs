@@ -1,7 +1,7 @@
 //! The GPU (SPIR-V through wgpu; lavapipe in CI) and the CPU backend run the same kernel
 //! functions with the same random streams: their images must agree pixel by pixel.
 use runner::backend::Backend;
-use runner::cli::{BackendChoice, Integrator, KernelArgs, LightSampling, SceneArgs};
+use runner::cli::{BackendChoice, Integrator, KernelArgs, LightSampling, SceneArgs, UpAxis};
 use runner::cpu::CpuBackend;
 use runner::gpu::{adapters, GpuBackend, GpuContext};
 use runner::output::Image;
@@ -10,7 +10,7 @@ use runner::scene::Scene;
 use runner::setup::{frame_params, load_scene};
 
 fn scene_args(width: u32, height: u32) -> SceneArgs {
-    SceneArgs { scene: None, width, height, eye: None, target: None, up: None, fov: None }
+    SceneArgs { scene: None, width, height, eye: None, target: None, up: None, up_axis: UpAxis::Y, fov: None }
 }
 
 fn kernel_args(integrator: Integrator, spp: u32) -> KernelArgs {
@@ -20,7 +20,8 @@ fn kernel_args(integrator: Integrator, spp: u32) -> KernelArgs {
         candidates: 8,
         temporal_cap: 20.0,
         spatial_neighbours: 5,
-        spatial_radius: 10.0,
+        spatial_radius: Some(10.0),
+        restir_bias: None,
         spatial_passes: 2,
         no_temporal: false,
         no_visibility_reuse: false,

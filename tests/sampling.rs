@@ -90,7 +90,7 @@ fn light_selection_follows_power_and_uniform_pdfs() {
         let n = 2_000_000u64;
         let mut counts = vec![0u64; lights.len()];
         for _ in 0..n {
-            counts[select_light(&lights, mode, rng.next_f32()) as usize] += 1;
+            counts[select_light(&lights, mode, rng.next_u32(), rng.next_f32()) as usize] += 1;
         }
         let expected: Vec<f64> = (0..lights.len() as u32)
             .map(|i| n as f64 * selection_pdf(&lights, mode, i) as f64)
@@ -112,5 +112,54 @@ fn light_selection_follows_power_and_uniform_pdfs() {
     // Each emitter knows its table slot.
     for (i, l) in lights.iter().enumerate() {
         assert_eq!(tris[l.triangle as usize].light, i as u32);
+    }
+}
+
+/// With 2¹⁸ lights, the probability with which `select_light` picks each light — worked out
+/// exactly from the 2³² slot numbers and 2²⁴ coin values it can draw — must be the pdf the
+/// integrators divide by. (One 24-bit number for slot and coin gave the coin 6 bits here.)
+#[test]
+fn light_selection_is_exact_for_many_lights() {
+    let n = 1usize << 18;
+    let mut rng = Rng::from_seed(29);
+    let mut materials = vec![Material::new(Vec3::splat(0.5), Vec3::ZERO)];
+    let mut tris = Vec::with_capacity(n);
+    for i in 0..n {
+        // Powers over six orders of magnitude.
+        let strength = 10f32.powf(6.0 * rng.next_f32() - 3.0);
+        materials.push(Material::new(Vec3::splat(0.5), Vec3::splat(strength)));
+        let o = Vec3::new(i as f32, 0.0, 0.0);
+        tris.push(Triangle::new(o, o + Vec3::X, o + Vec3::Y, i as u32 + 1));
+    }
+    let lights = build_light_table(&mut tris, &materials);
+    assert_eq!(lights.len(), n);
+    let two32 = 2f64.powi(32);
+    let two24 = 2f64.powi(24);
+    // Slot s gets the u with ⌊u·n / 2³²⌋ = s; the coin takes the values j / 2²⁴.
+    let slot_p = |s: usize| ((((s + 1) as f64) * two32 / n as f64).ceil() - ((s as f64) * two32 / n as f64).ceil()) / two32;
+    let coin_below = |t: f32| ((t as f64 * two24).ceil().clamp(0.0, two24)) / two24;
+    let mut picked = vec![0f64; n];
+    let mut aliased_by = vec![0u32; n];
+    for (s, l) in lights.iter().enumerate() {
+        let q = coin_below(l.threshold);
+        picked[s] += slot_p(s) * q;
+        picked[l.alias as usize] += slot_p(s) * (1.0 - q);
+        aliased_by[l.alias as usize] += 1;
+    }
+    // Exact but for the coin's 2⁻²⁴ steps (one per slot that can land on the light), the
+    // ±1 count of slot sizes and f32 rounding of thresholds and pdfs.
+    let mut worst = 0.0f64;
+    for i in 0..n {
+        let pdf = selection_pdf(&lights, LIGHT_SAMPLING_POWER, i as u32) as f64;
+        let tolerance = 1e-4 * pdf + (1 + aliased_by[i]) as f64 / (two24 * n as f64);
+        let err = (picked[i] - pdf).abs();
+        worst = worst.max(err / tolerance);
+        assert!(err <= tolerance, "light {i}: picked with {} but pdf {pdf}", picked[i]);
+    }
+    eprintln!("worst error / tolerance: {worst:.3}");
+    // And the uniform mode: every slot equally likely to within one u32 value.
+    for s in [0, 1, n / 3, n - 1] {
+        assert!((slot_p(s) * n as f64 - 1.0).abs() < 2.0 * n as f64 / two32);
+        assert_eq!(select_light(&lights, LIGHT_SAMPLING_UNIFORM, ((s as f64 + 0.5) * two32 / n as f64) as u32, 0.0), s as u32);
     }
 }

@@ -154,11 +154,16 @@ fn window_shows_the_rendered_image() {
 
 #[test]
 fn viewer_without_a_display_fails_cleanly() {
-    let o = runner(&["view", "--width", "32", "--height", "32", "--exit-after", "1"], None);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success());
-    assert!(err.contains("error:") && err.contains("display"), "{err}");
-    assert!(!err.contains("panicked"), "{err}");
+    // No display at all, and a display name that nothing answers.
+    for display in [None, Some(":987654")] {
+        let o = runner(&["view", "--width", "32", "--height", "32", "--exit-after", "1"], display);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{display:?}: {err}");
+        assert!(err.starts_with("error:") && err.contains("display") && err.lines().count() == 1, "{display:?}: {err}");
+        // A person is told what happened, not where in a dependency's source it was noticed.
+        assert!(!err.contains(".rs:") && !err.contains("/src/"), "{display:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
 }
 
 #[test]

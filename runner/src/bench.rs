@@ -48,6 +48,17 @@ fn median(v: &[f64]) -> f64 {
     }
 }
 
+/// A rate with the SI prefix that gives it three or four significant digits
+/// ("3.362 G", "4.21 M", "812 k", "12.0").
+pub fn with_unit(x: f64) -> String {
+    let (value, prefix) = [(1e9, "G"), (1e6, "M"), (1e3, "k")]
+        .iter()
+        .find(|(scale, _)| x.abs() >= *scale)
+        .map_or((x, ""), |&(scale, prefix)| (x / scale, prefix));
+    let decimals = if value.abs() >= 100.0 { 0 } else if value.abs() >= 10.0 { 1 } else { 2 };
+    format!("{value:.decimals$} {prefix}").trim_end().to_string()
+}
+
 impl BenchReport {
     pub fn rays_per_second(&self) -> f64 {
         self.rays_per_frame as f64 / (median(&self.frame_ms) * 1e-3)
@@ -72,7 +83,7 @@ impl BenchReport {
         for (name, ms) in &self.breakdown {
             let _ = writeln!(s, "  {name:<12} {ms:.3} ms (median per frame)");
         }
-        let _ = writeln!(s, "rays/s         {:.3} G", self.rays_per_second() * 1e-9);
+        let _ = writeln!(s, "rays/s         {}", with_unit(self.rays_per_second()));
         s
     }
 
@@ -103,6 +114,20 @@ impl BenchReport {
                 .collect::<Vec<_>>()
                 .join(",")
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn rates_carry_their_unit() {
+        use super::with_unit;
+        assert_eq!(with_unit(3.3625e9), "3.36 G");
+        assert_eq!(with_unit(42.13e6), "42.1 M");
+        assert_eq!(with_unit(812.4e3), "812 k");
+        assert_eq!(with_unit(1000.0), "1.00 k");
+        assert_eq!(with_unit(12.0), "12.0");
+        assert_eq!(with_unit(0.5), "0.50");
     }
 }
 
@@ -167,7 +192,7 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
         bvh_build_ms: scene.bvh_build_time.as_secs_f64() * 1e3,
         traversal: kernels::bvh::TRAVERSAL,
         backend: backend.describe(),
-        integrator: format!("{:?}", k.integrator).to_lowercase(),
+        integrator: k.integrator.name().to_string(),
         width: params.width,
         height: params.height,
         spp: k.spp,

@@ -51,6 +51,42 @@ pub enum Integrator {
     Restir,
 }
 
+impl Integrator {
+    /// The name `--integrator` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            Integrator::Ao => "ao",
+            Integrator::Pt => "pt",
+            Integrator::Nee => "nee",
+            Integrator::Mis => "mis",
+            Integrator::Ris => "ris",
+            Integrator::Restir => "restir",
+        }
+    }
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum RestirBias {
+    /// 1/Z: converges to the right image
+    Unbiased,
+    /// 1/M: no extra shadow rays, a little darker where visibility varies
+    Biased,
+}
+
+impl RestirBias {
+    /// The mode the build chose (the `restir-unbiased` feature, on by default).
+    pub const COMPILED_DEFAULT: RestirBias =
+        if kernels::integrators::restir::UNBIASED_BY_DEFAULT { RestirBias::Unbiased } else { RestirBias::Biased };
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum UpAxis {
+    /// +y is up, the model faces +z
+    Y,
+    /// +z is up, the model faces -y
+    Z,
+}
+
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 pub enum LightSampling {
     /// Every emissive triangle equally likely (the course)
@@ -61,9 +97,10 @@ pub enum LightSampling {
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 pub enum BackendChoice {
-    /// A hardware GPU, else a software Vulkan driver (lavapipe), else the CPU backend
+    /// A hardware GPU that the scene fits on, else the CPU backend (which runs the kernels
+    /// faster than a software Vulkan driver such as lavapipe)
     Auto,
-    /// A Vulkan adapter (hardware preferred); fail if there is none
+    /// A Vulkan adapter (hardware preferred, else a software driver); fail if there is none
     Gpu,
     /// The CPU backend: the same kernel functions, rayon over pixels
     Cpu,
@@ -77,10 +114,10 @@ pub struct SceneArgs {
     #[arg(long, value_name = "FILE.obj|NAME")]
     pub scene: Option<PathBuf>,
     /// Image width in pixels
-    #[arg(long, default_value_t = 800, value_name = "W")]
+    #[arg(long, default_value_t = 512, value_name = "W")]
     pub width: u32,
     /// Image height in pixels
-    #[arg(long, default_value_t = 800, value_name = "H")]
+    #[arg(long, default_value_t = 512, value_name = "H")]
     pub height: u32,
     /// Camera position [default: the scene's `# camera:` line, else framed from the bounds]
     #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
@@ -88,9 +125,14 @@ pub struct SceneArgs {
     /// Point the camera looks at
     #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
     pub target: Option<Vec3>,
-    /// Up direction (the top of the image)
+    /// Up direction (the top of the image) [default: the scene's `# camera:` line, else
+    /// --up-axis]
     #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
     pub up: Option<Vec3>,
+    /// Which world axis points up in the scene file: y (OBJ and glTF convention) or z
+    /// (Blender, CAD and many scanned meshes); the default camera stands upright on it
+    #[arg(long, value_enum, default_value_t = UpAxis::Y)]
+    pub up_axis: UpAxis,
     /// Vertical field of view in degrees, in (0, 180)
     #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
     pub fov: Option<f32>,
@@ -100,10 +142,10 @@ pub struct SceneArgs {
 #[derive(Args, Debug, Clone)]
 pub struct KernelArgs {
     /// Which integrator (kernel) to run
-    #[arg(long, value_enum, default_value_t = Integrator::Ao)]
+    #[arg(long, value_enum, default_value_t = Integrator::Mis)]
     pub integrator: Integrator,
     /// Samples per pixel (camera rays, each jittered in its pixel; the pixel is their mean)
-    #[arg(long, default_value_t = 16, value_name = "N")]
+    #[arg(long, default_value_t = 64, value_name = "N")]
     pub spp: u32,
     /// Path segments (Mitsuba's max_depth): 1 = emitters seen directly, 2 = + direct light
     #[arg(long, default_value_t = 8, value_name = "N")]
@@ -123,9 +165,15 @@ pub struct KernelArgs {
     /// ReSTIR: neighbours merged per spatial pass (at most 16)
     #[arg(long, default_value_t = 5, value_name = "K")]
     pub spatial_neighbours: u32,
-    /// ReSTIR: radius of the spatial neighbourhood in pixels
-    #[arg(long, default_value_t = 30.0, value_name = "PX")]
-    pub spatial_radius: f32,
+    /// ReSTIR: radius of the spatial neighbourhood in pixels [default: 30 px at 1080 lines,
+    /// in proportion to the image's smaller side, at least 3]
+    #[arg(long, value_name = "PX")]
+    pub spatial_radius: Option<f32>,
+    /// ReSTIR: how reused samples are weighted: unbiased (1/Z over the reservoirs that could
+    /// have produced the sample, with a shadow ray each) or biased (1/M: cheaper, darker)
+    /// [default: unbiased; biased when built without the `restir-unbiased` feature]
+    #[arg(long, value_enum)]
+    pub restir_bias: Option<RestirBias>,
     /// ReSTIR: spatial reuse passes per frame (0 = none)
     #[arg(long, default_value_t = 1, value_name = "N")]
     pub spatial_passes: u32,
@@ -165,6 +213,10 @@ pub struct RenderArgs {
     /// Move the camera around --target by this many degrees per frame (about --up)
     #[arg(long, default_value_t = 0.0, value_name = "DEG", allow_hyphen_values = true)]
     pub orbit: f32,
+    /// Start the sequence at this frame: its camera (--orbit) and random numbers are those
+    /// of frame F of a longer sequence (e.g. a converged reference for one frame of an orbit)
+    #[arg(long, default_value_t = 0, value_name = "F")]
+    pub first_frame: u32,
     /// Average all frames into --out (default: --out is the last frame)
     #[arg(long)]
     pub accumulate: bool,

@@ -104,9 +104,9 @@ impl CpuBackend {
                         *o = match pass {
                             RestirPass::Initial => restir::initial_pass(&scene, p, &g[i as usize], i, rays),
                             RestirPass::Temporal => {
-                                restir::temporal_pass(&scene, p, g, g_prev, res_in, res_prev, x, y)
+                                restir::temporal_pass(&scene, p, g, g_prev, res_in, res_prev, x, y, rays)
                             }
-                            _ => restir::spatial_pass(&scene, p, g, res_in, x, y),
+                            _ => restir::spatial_pass(&scene, p, g, res_in, x, y, rays),
                         };
                     });
                     st.reservoirs[sl.res_out] = out;

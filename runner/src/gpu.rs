@@ -265,6 +265,32 @@ pub fn check_buffer_size(limits: &wgpu::Limits, what: &str, bytes: u64) -> Resul
     Ok(())
 }
 
+/// Bytes per pixel of the accumulation buffer (rgb sum and sample count, f32 each).
+const ACCUMULATION_TEXEL_BYTES: u64 = 16;
+
+/// Check that a scene and an image of `width`×`height` fit this GPU's limits (every buffer
+/// any integrator allocates, ReSTIR's included), before allocating anything.
+pub fn check_fits(limits: &wgpu::Limits, scene: &Scene, width: u32, height: u32) -> Result<()> {
+    let groups = (width.div_ceil(WORKGROUP.0), height.div_ceil(WORKGROUP.1));
+    let max_groups = limits.max_compute_workgroups_per_dimension;
+    if groups.0 > max_groups || groups.1 > max_groups {
+        bail!(
+            "image {width}x{height} needs {}x{} workgroups, over this GPU's limit of {max_groups} per dimension",
+            groups.0,
+            groups.1
+        );
+    }
+    let pixels = width as u64 * height as u64;
+    check_buffer_size(limits, "the triangle buffer", std::mem::size_of_val(&scene.triangles[..]) as u64)?;
+    check_buffer_size(limits, "the material buffer", std::mem::size_of_val(&scene.materials[..]) as u64)?;
+    check_buffer_size(limits, "the BVH node buffer", std::mem::size_of_val(&scene.nodes[..]) as u64)?;
+    check_buffer_size(limits, "the light buffer", std::mem::size_of_val(&scene.lights[..]) as u64)?;
+    check_buffer_size(limits, "the image buffer", pixels * ACCUMULATION_TEXEL_BYTES)?;
+    check_buffer_size(limits, "the ReSTIR G-buffer", pixels * std::mem::size_of::<GBufferTexel>() as u64)?;
+    check_buffer_size(limits, "the ReSTIR reservoir buffer", pixels * std::mem::size_of::<Reservoir>() as u64)?;
+    Ok(())
+}
+
 /// Storage buffers must not be empty: pad with one zeroed element.
 fn bytes_or_zero(bytes: &[u8], elem: usize) -> Cow<'_, [u8]> {
     if bytes.is_empty() {
@@ -306,26 +332,12 @@ struct RestirBuffers {
 
 impl GpuBackend {
     pub fn new(ctx: GpuContext, scene: &Scene, width: u32, height: u32) -> Result<Self> {
-        let limits = &ctx.limits;
-        let groups = (width.div_ceil(WORKGROUP.0), height.div_ceil(WORKGROUP.1));
-        let max_groups = limits.max_compute_workgroups_per_dimension;
-        if groups.0 > max_groups || groups.1 > max_groups {
-            bail!(
-                "image {width}x{height} needs {}x{} workgroups, over this GPU's limit of {max_groups} per dimension",
-                groups.0,
-                groups.1
-            );
-        }
+        check_fits(&ctx.limits, scene, width, height)?;
         let tri_bytes: &[u8] = bytemuck::cast_slice(&scene.triangles);
         let mat_bytes: &[u8] = bytemuck::cast_slice(&scene.materials);
         let node_bytes: &[u8] = bytemuck::cast_slice(&scene.nodes);
         let light_bytes: &[u8] = bytemuck::cast_slice(&scene.lights);
-        let accum_size = width as u64 * height as u64 * 16;
-        check_buffer_size(limits, "the triangle buffer", tri_bytes.len() as u64)?;
-        check_buffer_size(limits, "the material buffer", mat_bytes.len() as u64)?;
-        check_buffer_size(limits, "the BVH node buffer", node_bytes.len() as u64)?;
-        check_buffer_size(limits, "the light buffer", light_bytes.len() as u64)?;
-        check_buffer_size(limits, "the image buffer", accum_size)?;
+        let accum_size = width as u64 * height as u64 * ACCUMULATION_TEXEL_BYTES;
 
         let device = &ctx.device;
         let init = |label: &str, contents: &[u8], usage| {

@@ -52,6 +52,7 @@ fn main() -> ExitCode {
 }
 
 fn render_command(args: &RenderArgs) -> Result<()> {
+    let started = std::time::Instant::now();
     let format = check_writable(&args.out)?;
     if args.frames == 0 {
         runner::bail!("--frames must be at least 1");
@@ -63,18 +64,25 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         std::fs::create_dir_all(dir).context(|| format!("cannot create --out-dir '{}'", dir.display()))?;
     }
     let scene = load_scene(&args.scene)?;
-    let params = frame_params(&args.scene, &args.kernel, &scene)?;
+    let mut params = frame_params(&args.scene, &args.kernel, &scene)?;
+    // Frame F of a sequence draws the random numbers of samples F·spp onwards.
+    let first_sample = args.first_frame as u64 * args.kernel.spp as u64 + args.frames as u64 * args.kernel.spp as u64;
+    if first_sample > u32::MAX as u64 {
+        runner::bail!("--first-frame, --frames and --spp together exceed 2^32 samples");
+    }
+    params.frame = args.first_frame * args.kernel.spp;
+    params.sample_offset = args.first_frame * args.kernel.spp;
     let mut backend = open_backend(args.kernel.backend, &scene, params.width, params.height)?;
     let k = &args.kernel;
     eprintln!(
-        "{} triangles ({} emissive), {}x{}, {} spp x {} frame(s), integrator {:?}{}, BVH {}, backend {}",
+        "{} triangles ({} emissive), {}x{}, {} spp x {} frame(s), integrator {}{}, BVH {}, backend {}",
         scene.triangles.len(),
         scene.lights.len(),
         params.width,
         params.height,
         k.spp,
         args.frames,
-        k.integrator,
+        k.integrator.name(),
         if k.integrator == runner::cli::Integrator::Restir {
             if params.restir_flags & kernels::types::RESTIR_UNBIASED != 0 {
                 " (unbiased 1/Z)"
@@ -98,18 +106,24 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         k.spp,
         args.frames,
         args.accumulate,
-        |f| orbit_camera(&args.scene, &scene, args.orbit * f as f32),
+        |f| orbit_camera(&args.scene, &scene, args.orbit * (args.first_frame as u64 + f as u64) as f32),
         |f, image| match &args.out_dir {
             Some(dir) => write_image(&dir.join(format!("frame_{f:04}.{ext}")), image),
             None => Ok(()),
         },
     )?;
     write_image(&args.out, &image)?;
-    let total: f64 = stats.pass_ms.iter().sum();
+    let kernel_s = stats.pass_ms.iter().sum::<f64>() * 1e-3;
     eprintln!(
-        "wrote {} ({total:.1} ms of kernel time, {:.1} M rays)",
+        "wrote {} in {:.2} s: {}x{}, {} spp x {} frame(s), {} rays ({} rays/s over {kernel_s:.2} s of kernel time)",
         args.out.display(),
-        stats.rays as f64 * 1e-6
+        started.elapsed().as_secs_f64(),
+        params.width,
+        params.height,
+        k.spp,
+        args.frames,
+        runner::bench::with_unit(stats.rays as f64),
+        runner::bench::with_unit(stats.rays as f64 / kernel_s.max(1e-9)),
     );
     Ok(())
 }

@@ -3,17 +3,17 @@
 use indicatif::{ProgressBar, ProgressStyle};
 use kernels::types::FrameParams;
 
-use crate::backend::Backend;
+use crate::backend::{choose_auto, AdapterFit, AutoChoice, Backend};
 use crate::bail;
 use crate::cli::{BackendChoice, Integrator};
 use crate::cpu::CpuBackend;
 use crate::error::Result;
-use crate::gpu::{adapters, is_software, GpuBackend, GpuContext};
+use crate::gpu::{adapters, check_fits, is_software, GpuBackend, GpuContext};
 use crate::output::Image;
 use crate::scene::Scene;
 
-/// Open the backend the user asked for. `auto` takes a hardware GPU, else a software
-/// Vulkan driver, else the CPU; it says which on stderr.
+/// Open the backend the user asked for. `auto` takes the first hardware GPU that the scene
+/// fits on, else the CPU backend, and says why on stderr when it is not the GPU.
 pub fn open_backend(
     choice: BackendChoice,
     scene: &Scene,
@@ -24,23 +24,34 @@ pub fn open_backend(
         return Ok(Box::new(CpuBackend::new(scene, width, height)));
     }
     let list = adapters();
-    match (list.first(), choice) {
-        (Some(adapter), _) => {
-            if is_software(adapter) && choice == BackendChoice::Auto {
-                eprintln!("note: no hardware GPU found; using the software Vulkan driver");
+    let adapter = match choice {
+        BackendChoice::Gpu => match list.first() {
+            Some(a) => a,
+            None => bail!(
+                "no Vulkan adapter with SPIR-V passthrough found (install a Vulkan driver, \
+                 e.g. mesa-vulkan-drivers, or use --backend cpu)"
+            ),
+        },
+        _ => {
+            let fits: Vec<AdapterFit> = list
+                .iter()
+                .map(|a| AdapterFit {
+                    name: a.get_info().name,
+                    software: is_software(a),
+                    fits: check_fits(&a.limits(), scene, width, height),
+                })
+                .collect();
+            match choose_auto(&fits) {
+                AutoChoice::Gpu(i) => &list[i],
+                AutoChoice::Cpu(why) => {
+                    eprintln!("note: {why}");
+                    return Ok(Box::new(CpuBackend::new(scene, width, height)));
+                }
             }
-            let ctx = GpuContext::new(adapter)?;
-            Ok(Box::new(GpuBackend::new(ctx, scene, width, height)?))
         }
-        (None, BackendChoice::Gpu) => bail!(
-            "no Vulkan adapter with SPIR-V passthrough found (install a Vulkan driver, \
-             e.g. mesa-vulkan-drivers, or use --backend cpu)"
-        ),
-        (None, _) => {
-            eprintln!("note: no Vulkan adapter found; using the CPU backend");
-            Ok(Box::new(CpuBackend::new(scene, width, height)))
-        }
-    }
+    };
+    let ctx = GpuContext::new(adapter)?;
+    Ok(Box::new(GpuBackend::new(ctx, scene, width, height)?))
 }
 
 /// Timing of a finished render.

@@ -6,7 +6,7 @@ use kernels::camera::look_at;
 use kernels::types::{Camera, FrameParams};
 
 use crate::bail;
-use crate::cli::{Integrator, KernelArgs, LightSampling, SceneArgs};
+use crate::cli::{Integrator, KernelArgs, LightSampling, RestirBias, SceneArgs, UpAxis};
 use crate::error::Result;
 use crate::scene::{load_obj, Scene};
 
@@ -52,45 +52,96 @@ pub fn load_scene(args: &SceneArgs) -> Result<Scene> {
     Ok(scene)
 }
 
-/// Camera from the flags, else the scene's `# camera:` line, else one that frames the
-/// scene's bounds from +z.
-pub fn camera(args: &SceneArgs, scene: &Scene) -> Result<Camera> {
-    if args.width == 0 || args.height == 0 {
-        bail!("image size must be at least 1x1, got {}x{}", args.width, args.height);
+/// Where the camera stands, before the image's aspect is known.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraPose {
+    pub eye: Vec3,
+    pub target: Vec3,
+    /// The world's up direction (the top of the image, and the axis `--orbit` turns about).
+    pub up: Vec3,
+    /// Vertical field of view in degrees.
+    pub fov: f32,
+}
+
+/// Default vertical field of view, degrees.
+pub const DEFAULT_FOV: f32 = 45.0;
+/// The default view of a scene without a camera: from the front, turned this far to the
+/// right and raised this far above the horizon (a three-quarter view that shows a model's
+/// front, side and top at once, as product shots and DCC tools' default views do).
+const THREE_QUARTER_AZIMUTH_DEG: f32 = 35.0;
+const THREE_QUARTER_ELEVATION_DEG: f32 = 25.0;
+
+impl UpAxis {
+    /// The world's up vector.
+    pub fn up(self) -> Vec3 {
+        match self {
+            UpAxis::Y => Vec3::Y,
+            UpAxis::Z => Vec3::Z,
+        }
     }
-    if args.width > MAX_IMAGE_SIDE || args.height > MAX_IMAGE_SIDE {
-        bail!("image size {}x{} is too large (at most {MAX_IMAGE_SIDE} per side)", args.width, args.height);
+    /// The direction a model's front faces: +z for Y-up files (OBJ, glTF), -y for Z-up
+    /// files (Blender's and most CAD tools' front view looks along +y).
+    pub fn front(self) -> Vec3 {
+        match self {
+            UpAxis::Y => Vec3::Z,
+            UpAxis::Z => -Vec3::Y,
+        }
     }
-    if args.width as u64 * args.height as u64 > MAX_IMAGE_PIXELS {
-        bail!(
-            "image size {}x{} is too large ({} pixels; at most {MAX_IMAGE_PIXELS})",
-            args.width,
-            args.height,
-            args.width as u64 * args.height as u64
-        );
-    }
+}
+
+/// The camera pose from the flags, else the scene's `# camera:` line, else a three-quarter
+/// view from the front that frames the scene's bounding sphere, upright for `--up-axis`.
+pub fn camera_pose(args: &SceneArgs, scene: &Scene) -> Result<CameraPose> {
     let (lo, hi) = scene.bounds();
-    let centre = 0.5 * (lo + hi);
     let hint = scene.camera;
-    let fov = args.fov.or(hint.map(|h| h.fov)).unwrap_or(45.0);
+    let fov = args.fov.or(hint.map(|h| h.fov)).unwrap_or(DEFAULT_FOV);
     if !(fov > 0.0 && fov < 180.0) {
         bail!("--fov must be in (0, 180) degrees, got {fov}");
     }
-    let target = args.target.or(hint.map(|h| h.target)).unwrap_or(centre);
-    let up = args.up.or(hint.map(|h| h.up)).unwrap_or(Vec3::Y);
+    let target = args.target.or(hint.map(|h| h.target)).unwrap_or(0.5 * (lo + hi));
+    let up = args.up.or(hint.map(|h| h.up)).unwrap_or(args.up_axis.up());
     let eye = args.eye.or(hint.map(|h| h.eye)).unwrap_or_else(|| {
         let radius = 0.5 * (hi - lo).length();
-        target + Vec3::Z * (radius / (0.5 * fov.to_radians()).sin())
+        let (az, el) = (THREE_QUARTER_AZIMUTH_DEG.to_radians(), THREE_QUARTER_ELEVATION_DEG.to_radians());
+        let front = args.up_axis.front();
+        let right = front.cross(args.up_axis.up()).normalize() * -1.0;
+        let dir = (front * az.cos() + right * az.sin()) * el.cos() + args.up_axis.up() * el.sin();
+        target + dir * (radius / (0.5 * fov.to_radians()).sin())
     });
     let forward = target - eye;
+    if !forward.is_finite() || !eye.is_finite() || !target.is_finite() {
+        bail!("the camera's position or view direction is not finite (eye {eye}, target {target})");
+    }
     if forward.length() <= f32::EPSILON * eye.abs().max_element().max(1.0) {
         bail!("--eye and --target are the same point");
     }
     if up.length() == 0.0 || forward.normalize().cross(up.normalize()).length() < 1e-6 {
         bail!("--up must not be zero or parallel to the view direction (target - eye)");
     }
+    Ok(CameraPose { eye, target, up, fov })
+}
+
+/// Check the image size against what one accumulation buffer can hold.
+pub fn check_image_size(width: u32, height: u32) -> Result<()> {
+    if width == 0 || height == 0 {
+        bail!("image size must be at least 1x1, got {width}x{height}");
+    }
+    if width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
+        bail!("image size {width}x{height} is too large (at most {MAX_IMAGE_SIDE} per side)");
+    }
+    let pixels = width as u64 * height as u64;
+    if pixels > MAX_IMAGE_PIXELS {
+        bail!("image size {width}x{height} is too large ({pixels} pixels; at most {MAX_IMAGE_PIXELS})");
+    }
+    Ok(())
+}
+
+/// The kernels' camera for the flags and the scene (see `camera_pose`).
+pub fn camera(args: &SceneArgs, scene: &Scene) -> Result<Camera> {
+    check_image_size(args.width, args.height)?;
+    let pose = camera_pose(args, scene)?;
     let aspect = args.width as f32 / args.height as f32;
-    Ok(look_at(eye, target, up, fov, aspect))
+    Ok(look_at(pose.eye, pose.target, pose.up, pose.fov, aspect))
 }
 
 pub fn frame_params(args: &SceneArgs, kernel: &KernelArgs, scene: &Scene) -> Result<FrameParams> {
@@ -114,8 +165,8 @@ pub fn frame_params(args: &SceneArgs, kernel: &KernelArgs, scene: &Scene) -> Res
         if kernel.sky == Vec3::ZERO {
             bail!(
                 "the scene has no emitters (no material with Ke > 0) and --sky is black: \
-                 the {:?} image would be black",
-                kernel.integrator
+                 the {} image would be black; light it with --sky R,G,B or render --integrator ao",
+                kernel.integrator.name()
             );
         }
         eprintln!("warning: the scene has no emitters; only --sky lights it");
@@ -132,7 +183,8 @@ pub fn frame_params(args: &SceneArgs, kernel: &KernelArgs, scene: &Scene) -> Res
             kernels::integrators::restir::MAX_SPATIAL_NEIGHBOURS
         );
     }
-    if !(kernel.spatial_radius >= 1.0 && kernel.spatial_radius.is_finite()) {
+    let spatial_radius = kernel.spatial_radius.unwrap_or_else(|| default_spatial_radius(args.width, args.height));
+    if !(spatial_radius >= 1.0 && spatial_radius.is_finite()) {
         bail!("--spatial-radius must be at least 1 pixel");
     }
     if kernel.spatial_passes > 8 {
@@ -162,16 +214,25 @@ pub fn frame_params(args: &SceneArgs, kernel: &KernelArgs, scene: &Scene) -> Res
         restir_flags: restir_flags(kernel),
         temporal_cap: kernel.temporal_cap,
         spatial_neighbours: kernel.spatial_neighbours,
-        spatial_radius: kernel.spatial_radius,
+        spatial_radius,
         spatial_passes: kernel.spatial_passes,
         ..Default::default()
     })
 }
 
+/// ReSTIR's spatial radius: 30 px at 1080 lines (what RTXDI and Bitterli et al. use at
+/// that size), scaled with the image's smaller side, so that a small image does not reach
+/// across a quarter of itself for neighbours.
+pub fn default_spatial_radius(width: u32, height: u32) -> f32 {
+    const RADIUS_AT_1080: f32 = 30.0;
+    const MIN_RADIUS: f32 = 3.0;
+    (RADIUS_AT_1080 * width.min(height) as f32 / 1080.0).max(MIN_RADIUS)
+}
+
 fn restir_flags(kernel: &KernelArgs) -> u32 {
     use kernels::types::{RESTIR_TEMPORAL, RESTIR_UNBIASED, RESTIR_VISIBILITY_REUSE};
     let mut flags = 0;
-    if kernels::integrators::restir::UNBIASED_BY_DEFAULT {
+    if kernel.restir_bias.unwrap_or(RestirBias::COMPILED_DEFAULT) == RestirBias::Unbiased {
         flags |= RESTIR_UNBIASED;
     }
     if !kernel.no_temporal {
@@ -183,24 +244,14 @@ fn restir_flags(kernel: &KernelArgs) -> u32 {
     flags
 }
 
-/// The camera of frame `frame` of an orbit: the eye turned about `up` through `target`.
+/// The camera of an orbit's frame: the eye turned by `degrees` about the world's up
+/// direction (`--up`, the scene's camera line or `--up-axis`) through the target.
 pub fn orbit_camera(args: &SceneArgs, scene: &Scene, degrees: f32) -> Result<Camera> {
-    let base = camera(args, scene)?;
-    if degrees == 0.0 {
-        return Ok(base);
-    }
-    let eye = Vec3::from(base.eye);
-    let forward = Vec3::from(base.forward);
-    let up = Vec3::from(base.up).normalize();
-    let target = args
-        .target
-        .or(scene.camera.map(|h| h.target))
-        .unwrap_or(eye + forward);
-    let rot = glam::Quat::from_axis_angle(up, degrees.to_radians());
-    let new_eye = target + rot * (eye - target);
-    let half_h = Vec3::from(base.up).length();
-    let fov = 2.0 * half_h.atan().to_degrees();
-    Ok(look_at(new_eye, target, up, fov, args.width as f32 / args.height as f32))
+    check_image_size(args.width, args.height)?;
+    let pose = camera_pose(args, scene)?;
+    let rot = glam::Quat::from_axis_angle(pose.up.normalize(), degrees.to_radians());
+    let eye = pose.target + rot * (pose.eye - pose.target);
+    Ok(look_at(eye, pose.target, pose.up, pose.fov, args.width as f32 / args.height as f32))
 }
 
 /// The fuzzing harness: bytes → OBJ (and MTL after the first 0xFF byte) → scene and BVH →
@@ -214,7 +265,16 @@ pub fn load_and_render_bytes(data: &[u8]) -> Result<crate::output::Image> {
     let obj = String::from_utf8_lossy(obj);
     let mtl = mtl.map(String::from_utf8_lossy);
     let scene = crate::scene::parse_obj_text("fuzz.obj", &obj, mtl.as_deref())?;
-    let args = SceneArgs { scene: None, width: 4, height: 4, eye: None, target: None, up: None, fov: None };
+    let args = SceneArgs {
+        scene: None,
+        width: 4,
+        height: 4,
+        eye: None,
+        target: None,
+        up: None,
+        up_axis: UpAxis::Y,
+        fov: None,
+    };
     let camera = camera(&args, &scene)?;
     let params = FrameParams {
         camera,

@@ -89,10 +89,10 @@ restir_kernel!(restir_initial, |scene, params, x, y, i, rays, g_cur, g_prev, res
     res_out[i] = restir::initial_pass(&scene, params, &g_cur[i], i as u32, &mut rays);
 });
 restir_kernel!(restir_temporal, |scene, params, x, y, i, rays, g_cur, g_prev, res_in, res_out, res_prev, accum| {
-    res_out[i] = restir::temporal_pass(&scene, params, g_cur, g_prev, res_in, res_prev, x, y);
+    res_out[i] = restir::temporal_pass(&scene, params, g_cur, g_prev, res_in, res_prev, x, y, &mut rays);
 });
 restir_kernel!(restir_spatial, |scene, params, x, y, i, rays, g_cur, g_prev, res_in, res_out, res_prev, accum| {
-    res_out[i] = restir::spatial_pass(&scene, params, g_cur, res_in, x, y);
+    res_out[i] = restir::spatial_pass(&scene, params, g_cur, res_in, x, y, &mut rays);
 });
 restir_kernel!(restir_shade, |scene, params, x, y, i, rays, g_cur, g_prev, res_in, res_out, res_prev, accum| {
     let l = restir::shade_pass(&scene, params, &g_cur[i], &res_in[i], i as u32, &mut rays);

@@ -2,6 +2,7 @@
 //! power with an alias table), a uniform point on it, and the pdfs that NEE and MIS need.
 use crate::bvh::Scene;
 use crate::glam::Vec3;
+use crate::rng::Rng;
 use crate::sampling::uniform_triangle;
 use crate::types::{Light, LIGHT_SAMPLING_UNIFORM};
 
@@ -20,17 +21,20 @@ pub struct LightSample {
     pub b2: f32,
 }
 
-/// Index into `lights` for a uniform number `u`, by the chosen mode.
-pub fn select_light(lights: &[Light], mode: u32, u: f32) -> u32 {
-    let n = lights.len() as u32;
-    let scaled = u * n as f32;
-    let i = (scaled as u32).min(n - 1);
+/// Index into `lights` by the chosen mode, from a uniform 32-bit number `u_slot` and a
+/// uniform `u_coin` in [0, 1). The slot is the high word of `u_slot · n` (exact for any
+/// number of lights: each slot gets ⌊2³²/n⌋ or ⌈2³²/n⌉ of the 2³² values) and the alias
+/// coin is a number of its own, so that with 2¹⁶+ lights the coin keeps its full 24 bits
+/// (drawing both from one f32 left it 24 − log2(n) bits, and the selection drifted far
+/// from the stored pdfs).
+pub fn select_light(lights: &[Light], mode: u32, u_slot: u32, u_coin: f32) -> u32 {
+    let i = crate::math::mul_hi(u_slot, lights.len() as u32);
     if mode == LIGHT_SAMPLING_UNIFORM {
         return i;
     }
     // Alias method: one table lookup, O(1) whatever the number of lights.
     let entry = lights[i as usize];
-    if scaled - (i as f32) < entry.threshold {
+    if u_coin < entry.threshold {
         i
     } else {
         entry.alias
@@ -46,12 +50,12 @@ pub fn selection_pdf(lights: &[Light], mode: u32, index: u32) -> f32 {
     }
 }
 
-/// Pick a light triangle and a uniform point on it from three uniform numbers.
-pub fn sample_light(scene: &Scene, mode: u32, u0: f32, u1: f32, u2: f32) -> LightSample {
-    let index = select_light(scene.lights, mode, u0);
+/// Pick a light triangle and a uniform point on it (four draws from `rng`).
+pub fn sample_light(scene: &Scene, mode: u32, rng: &mut Rng) -> LightSample {
+    let index = select_light(scene.lights, mode, rng.next_u32(), rng.next_f32());
     let triangle = scene.lights[index as usize].triangle;
     let tri = scene.triangles[triangle as usize];
-    let (b1, b2) = uniform_triangle(u1, u2);
+    let (b1, b2) = uniform_triangle(rng.next_f32(), rng.next_f32());
     let cross = tri.cross();
     let area = 0.5 * cross.length();
     LightSample {

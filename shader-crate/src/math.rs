@@ -52,3 +52,31 @@ pub fn luminance(c: Vec3) -> f32 {
 pub fn tan(x: f32) -> f32 {
     x.tan()
 }
+
+/// The high 32 bits of the 64-bit product `a · b`, in 32-bit arithmetic (SPIR-V without
+/// the Int64 capability): maps a uniform 32-bit number onto `0..b` without modulo bias.
+pub fn mul_hi(a: u32, b: u32) -> u32 {
+    let (a_lo, a_hi) = (a & 0xffff, a >> 16);
+    let (b_lo, b_hi) = (b & 0xffff, b >> 16);
+    let lo_lo = a_lo * b_lo;
+    let hi_lo = a_hi * b_lo;
+    let lo_hi = a_lo * b_hi;
+    // Cannot overflow: lo_hi ≤ (2¹⁶−1)², the other two terms < 2¹⁶ each.
+    let middle = (lo_lo >> 16) + (hi_lo & 0xffff) + lo_hi;
+    a_hi * b_hi + (hi_lo >> 16) + (middle >> 16)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn mul_hi_is_the_high_word_of_the_product() {
+        let mut x = 0x1234_5678u32;
+        for _ in 0..100_000 {
+            x = crate::rng::pcg_hash(x);
+            let y = crate::rng::pcg_hash(x ^ 0x5bd1_e995);
+            assert_eq!(super::mul_hi(x, y), ((x as u64 * y as u64) >> 32) as u32, "{x} {y}");
+        }
+        assert_eq!(super::mul_hi(u32::MAX, u32::MAX), u32::MAX - 1);
+        assert_eq!(super::mul_hi(u32::MAX, 7), 6);
+    }
+}

@@ -19,7 +19,7 @@ use super::controls::{action_for, FlyCamera, Held, Key, ViewState};
 use super::present::{self, Presenter};
 use crate::backend::Backend;
 use crate::bail;
-use crate::cli::{BackendChoice, ViewArgs};
+use crate::cli::{BackendChoice, Integrator, ViewArgs};
 use crate::error::{Error, Result};
 use crate::gpu::{spirv_words, storage_entry, GpuBackend, GpuContext};
 use crate::output::{check_writable, write_image, Image};
@@ -41,22 +41,31 @@ pub fn check_args(args: &ViewArgs) -> Result<()> {
     Ok(())
 }
 
+/// winit's OS errors read "os error at /home/.../winit-0.30/src/...rs:123: what happened":
+/// a person needs only what happened.
+fn without_source_location(message: &str) -> &str {
+    match message.strip_prefix("os error at ") {
+        Some(rest) => rest.split_once(": ").map_or(rest, |(_, what)| what),
+        None => message,
+    }
+}
+
 /// Open the window and run until it closes (or `--exit-after` frames).
 pub fn run(args: &ViewArgs, scene: Scene) -> Result<()> {
+    let has_display = ["DISPLAY", "WAYLAND_DISPLAY"].iter().any(|v| std::env::var_os(v).is_some_and(|d| !d.is_empty()));
+    if !has_display {
+        bail!("`view` needs a display and neither DISPLAY nor WAYLAND_DISPLAY is set; `render` needs none");
+    }
     let event_loop = EventLoop::new().map_err(|e| {
         Error(format!(
-            "cannot open a window ({e}); `view` needs a display (set DISPLAY or WAYLAND_DISPLAY), \
-             `render` does not"
+            "cannot open a window ({}); `view` needs a display it can connect to, `render` does not",
+            without_source_location(&e.to_string())
         ))
     })?;
     let copy = present::use_copy(args.present)?;
     let params = frame_params(&args.scene, &args.kernel, &scene)?;
-    let hint = scene.camera;
-    let eye = glam::Vec3::from(params.camera.eye);
-    let target = args.scene.target.or(hint.map(|h| h.target)).unwrap_or(eye + glam::Vec3::from(params.camera.forward));
-    let up = args.scene.up.or(hint.map(|h| h.up)).unwrap_or(glam::Vec3::Y);
-    let fov = 2.0 * glam::Vec3::from(params.camera.up).length().atan().to_degrees();
-    let camera = FlyCamera::new(eye, target, up, fov, scene.extent());
+    let pose = crate::setup::camera_pose(&args.scene, &scene)?;
+    let camera = FlyCamera::new(pose.eye, pose.target, pose.up, pose.fov, scene.extent());
     let mut app = App {
         args: args.clone(),
         scene,
@@ -259,10 +268,17 @@ impl App {
         base.spatial_passes = self.state.spatial_passes;
         self.params.camera = base.camera;
         let n = if self.restart { 0 } else { self.state.accumulated };
+        // ReSTIR's frame index is the viewer's frame count, which never resets, so a moving
+        // camera draws new numbers every frame (a still camera from the start renders
+        // exactly `render`'s frames). The other integrators count samples of the
+        // accumulation, as `render` does.
+        if self.state.integrator == Integrator::Restir {
+            base.frame = self.state.frame.wrapping_sub(n);
+        }
         let mut p = pass_params(self.state.integrator, &base, n, 1);
         // ReSTIR's history survives restarts of the accumulation: it follows the camera
         // by reprojection from the previous frame.
-        if self.state.frame > 0 {
+        if self.state.restir_history {
             p.restir_flags |= RESTIR_HISTORY_VALID;
             p.prev_camera = prev_camera;
         }

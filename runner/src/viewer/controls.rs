@@ -172,15 +172,28 @@ pub struct ViewState {
     pub spatial_passes: u32,
     /// Frames accumulated since the last restart.
     pub accumulated: u32,
-    /// Frames rendered in all (the ReSTIR frame index).
+    /// Frames rendered in all: the ReSTIR frame index, never reset, so that frames of a
+    /// moving camera draw new random numbers.
     pub frame: u32,
+    /// Whether the last frame left ReSTIR reservoirs that this frame may reuse: not after a
+    /// switch of integrator or of weighting (reservoirs weighted the other way are no history).
+    pub restir_history: bool,
     pub quit: bool,
     pub save_requested: bool,
 }
 
 impl ViewState {
     pub fn new(integrator: Integrator, restir_flags: u32, spatial_passes: u32) -> Self {
-        Self { integrator, restir_flags, spatial_passes, accumulated: 0, frame: 0, quit: false, save_requested: false }
+        Self {
+            integrator,
+            restir_flags,
+            spatial_passes,
+            accumulated: 0,
+            frame: 0,
+            restir_history: false,
+            quit: false,
+            save_requested: false,
+        }
     }
 
     /// Apply an action; returns true when accumulation must restart.
@@ -189,6 +202,7 @@ impl ViewState {
             Action::SetIntegrator(i) => {
                 let changed = i != self.integrator;
                 self.integrator = i;
+                self.restir_history &= !changed;
                 changed
             }
             Action::ToggleTemporal => {
@@ -197,6 +211,7 @@ impl ViewState {
             }
             Action::ToggleUnbiased => {
                 self.restir_flags ^= RESTIR_UNBIASED;
+                self.restir_history = false;
                 true
             }
             Action::SpatialPasses(d) => {
@@ -222,6 +237,7 @@ impl ViewState {
     pub fn frame_done(&mut self, restart: bool) {
         self.accumulated = if restart { 1 } else { self.accumulated + 1 };
         self.frame += 1;
+        self.restir_history = self.integrator == Integrator::Restir;
     }
 
     pub fn title(&self, width: u32, height: u32, gpu_ms: f64) -> String {
@@ -314,6 +330,29 @@ mod tests {
         assert_eq!(s.accumulated, 1);
         assert_eq!(action_for(Key::Digit(9)), None);
         assert_eq!(action_for(Key::W), None, "movement keys are held, not actions");
+    }
+
+    /// ReSTIR reuses the last frame's reservoirs only if that frame was a ReSTIR frame with
+    /// the same weighting; the frame index keeps counting through restarts.
+    #[test]
+    fn restir_history_is_dropped_when_integrator_or_weighting_changes() {
+        let mut c = cam();
+        let mut s = ViewState::new(Integrator::Restir, RESTIR_TEMPORAL, 1);
+        assert!(!s.restir_history, "no history before the first frame");
+        s.frame_done(true);
+        assert!(s.restir_history);
+        s.frame_done(true); // a camera move restarts the accumulation, not the history
+        assert!(s.restir_history && s.frame == 2 && s.accumulated == 1);
+        s.apply(action_for(Key::B).unwrap(), &mut c);
+        assert!(!s.restir_history, "biased and unbiased reservoirs are weighted differently");
+        s.frame_done(true);
+        s.apply(action_for(Key::Digit(3)).unwrap(), &mut c);
+        assert!(!s.restir_history);
+        s.frame_done(true);
+        s.apply(action_for(Key::Digit(6)).unwrap(), &mut c);
+        assert!(!s.restir_history, "the frame before was not a ReSTIR frame");
+        s.frame_done(true);
+        assert!(s.restir_history && s.frame == 5);
     }
 }
 

@@ -66,7 +66,7 @@ impl PathState {
 /// Direct light at surface `s` by next-event estimation: one light point, one shadow ray.
 /// With `mis`, weighted against BSDF sampling by the power heuristic.
 pub fn direct_nee(scene: &Scene, params: &FrameParams, s: &SurfaceHit, albedo: Vec3, mis: bool, rng: &mut Rng, rays: &mut u32) -> Vec3 {
-    let ls = sample_light(scene, params.light_sampling, rng.next_f32(), rng.next_f32(), rng.next_f32());
+    let ls = sample_light(scene, params.light_sampling, rng);
     let g = geometry_term(s.p, s.n, ls.p, ls.n);
     if g <= 0.0 {
         return Vec3::ZERO;

@@ -1,21 +1,28 @@
 //! ReSTIR DI (Bitterli et al. 2020), one function per pass; each pass is its own GPU
 //! dispatch, and the CPU backend runs the same functions pass by pass over all pixels.
 //! 1. `primary_hit`: the G-buffer (position, normal, albedo, depth) from the camera.
-//! 2. `initial_pass`: RIS over `candidates` light samples into a reservoir; optionally the
-//!    pick's visibility is tested before anyone reuses it.
+//! 2. `initial_pass`: RIS over `candidates` light samples into a reservoir.
 //! 3. `temporal_pass`: reproject into the previous frame, reject on depth/normal
 //!    mismatch (disocclusion), cap the history's M, merge.
 //! 4. `spatial_pass`: merge k neighbours within a radius that pass the same test.
-//! 5. `shade_pass`: f · Le · G · V · W with one shadow ray, plus emission seen directly
-//!    and, with max_depth > 2, the indirect light by NEE path tracing.
-//! W is normalised by 1/M (biased) or, with `RESTIR_UNBIASED` (the `restir-unbiased`
-//! feature's default), by 1/Z where Z counts only the M of reservoirs whose owners could
-//! hold the sample (non-zero target there); unbiased mode does no visibility reuse.
+//! 5. `shade_pass`: f · Le · G · W, plus emission seen directly and, with max_depth > 2
+//!    (or a sky), the light of a bounce continued by NEE path tracing.
+//!
+//! Every reservoir a pass writes holds a sample its owner *sees*, or none (W = 0): the
+//! initial pick is tested with a shadow ray, and a pass that takes a sample from another
+//! reservoir tests it from here. So visibility is reused along with the sample, and the
+//! shade pass needs no shadow ray of its own.
+//!
+//! W is normalised by 1/M (biased: reservoirs that could not have produced the sample
+//! still count) or, with `RESTIR_UNBIASED`, by 1/Z where Z counts the M of exactly the
+//! reservoirs that could have: those whose owner has a non-zero target for the sample and
+//! sees it (one shadow ray per such reservoir; Bitterli et al. 2020, Alg. 6 with the
+//! ray-traced test). Both are chosen at run time.
 use crate::bvh::{surface_hit, Scene, SurfaceHit};
 use crate::camera::primary_ray;
 use crate::glam::Vec3;
 use crate::integrators::path::{trace_path, PathState, NEE};
-use crate::integrators::ris::{initial_candidates, light_point, shade_reservoir, target_pdf_of};
+use crate::integrators::ris::{initial_candidates, light_point, shade_reservoir, target_pdf_of, unshadowed_reservoir};
 use crate::math::{sin_cos, sqrt, vec3, PI};
 use crate::reservoir::Reservoir;
 use crate::rng::{pcg_hash, Rng};
@@ -31,6 +38,17 @@ pub const MAX_SPATIAL_NEIGHBOURS: u32 = 16;
 const NORMAL_THRESHOLD: f32 = 0.906;
 const DEPTH_THRESHOLD: f32 = 0.1;
 
+/// Random stream ids of the passes (see `pass_rng`); spatial pass i draws stream
+/// `STREAM_SPATIAL + i`.
+const STREAM_PRIMARY: u32 = 0;
+const STREAM_INITIAL: u32 = 1;
+const STREAM_TEMPORAL: u32 = 2;
+const STREAM_SPATIAL: u32 = 3;
+const STREAM_SHADE: u32 = 64;
+/// Mixed into the seed with a pass's stream id, so pass streams differ from the streams
+/// of the other integrators.
+const PASS_STREAM_SALT: u32 = 0x9e37;
+
 /// The weighting the `restir-unbiased` cargo feature selects by default.
 pub const UNBIASED_BY_DEFAULT: bool = cfg!(feature = "restir-unbiased");
 
@@ -40,7 +58,7 @@ fn unbiased(params: &FrameParams) -> bool {
 
 /// The random stream of pass `pass` at a pixel in this frame.
 fn pass_rng(params: &FrameParams, pixel: u32, pass: u32) -> Rng {
-    Rng::new(pixel, params.frame, params.sample_offset, params.seed ^ pcg_hash(pass + 0x9e37))
+    Rng::new(pixel, params.frame, params.sample_offset, params.seed ^ pcg_hash(pass + PASS_STREAM_SALT))
 }
 
 fn has_hit(g: &GBufferTexel) -> bool {
@@ -50,7 +68,7 @@ fn has_hit(g: &GBufferTexel) -> bool {
 /// Pass 1: the camera ray of this pixel (jittered per frame) and what it hits.
 pub fn primary_hit(scene: &Scene, params: &FrameParams, x: u32, y: u32, rays: &mut u32) -> GBufferTexel {
     let pixel = y * params.width + x;
-    let mut rng = pass_rng(params, pixel, 0);
+    let mut rng = pass_rng(params, pixel, STREAM_PRIMARY);
     let jx = rng.next_f32();
     let jy = rng.next_f32();
     let ray = primary_ray(&params.camera, params.width, params.height, x as f32 + jx, y as f32 + jy);
@@ -70,36 +88,52 @@ pub fn primary_hit(scene: &Scene, params: &FrameParams, x: u32, y: u32, rays: &m
     }
 }
 
-/// Pass 2: RIS over the light candidates; with visibility reuse, an occluded pick keeps
-/// its M but loses its weight, so neighbours do not inherit a shadowed light. Unbiased
-/// mode skips it: it removes samples from a reservoir's support in a way that Z cannot
-/// account for (neighbours would count candidates that could not have survived).
+/// Keep reservoir `r` (owned by the surface point p, n) only if its owner sees the sample;
+/// else it keeps its M but no sample. One shadow ray.
+fn keep_if_visible(scene: &Scene, r: &mut Reservoir, p: Vec3, n: Vec3, rays: &mut u32) {
+    if !r.has_sample() || r.w <= 0.0 {
+        return;
+    }
+    let (q, nq, _) = light_point(scene, r.triangle, r.b1, r.b2);
+    *rays += 1;
+    if !scene.visible(p, n, q, nq) {
+        let m = r.m;
+        *r = Reservoir::empty();
+        r.m = m;
+    }
+}
+
+/// Pass 2: RIS over the light candidates; the pick is tested for visibility (unless
+/// `RESTIR_VISIBILITY_REUSE` is off), so that neither this pixel's later frames nor its
+/// neighbours inherit a light it cannot see.
 pub fn initial_pass(scene: &Scene, params: &FrameParams, g: &GBufferTexel, pixel: u32, rays: &mut u32) -> Reservoir {
     if !has_hit(g) {
         return Reservoir::empty();
     }
     let (p, n, albedo) = (vec3(g.p), vec3(g.n), vec3(g.albedo));
-    let mut rng = pass_rng(params, pixel, 1);
+    let mut rng = pass_rng(params, pixel, STREAM_INITIAL);
     let mut r = initial_candidates(scene, params, p, n, albedo, &mut rng);
-    if params.restir_flags & RESTIR_VISIBILITY_REUSE != 0 && !unbiased(params) && r.has_sample() {
-        let (q, nq, _) = light_point(scene, r.triangle, r.b1, r.b2);
-        *rays += 1;
-        if !scene.visible(p, n, q, nq) {
-            let m = r.m;
-            r = Reservoir::empty();
-            r.m = m;
-        }
-    }
     r.finalize(r.m);
+    if visibility_reuse(params) {
+        keep_if_visible(scene, &mut r, p, n, rays);
+    }
     r
 }
 
-/// Whether the surface seen in `other` is close enough to `g`'s to share light samples.
+fn visibility_reuse(params: &FrameParams) -> bool {
+    params.restir_flags & RESTIR_VISIBILITY_REUSE != 0
+}
+
+/// Whether a surface of normal `n` at distance `depth` from an eye is close enough to
+/// the surface `other` saw from the same eye to share light samples.
+fn similar_surface(n: Vec3, depth: f32, other: &GBufferTexel) -> bool {
+    has_hit(other) && n.dot(vec3(other.n)) >= NORMAL_THRESHOLD && (depth - other.depth).abs() <= DEPTH_THRESHOLD * depth
+}
+
+/// Whether the surface seen in `other` is close enough to `g`'s (same camera) to share
+/// light samples.
 pub fn similar(g: &GBufferTexel, other: &GBufferTexel) -> bool {
-    has_hit(g)
-        && has_hit(other)
-        && vec3(g.n).dot(vec3(other.n)) >= NORMAL_THRESHOLD
-        && (g.depth - other.depth).abs() <= DEPTH_THRESHOLD * g.depth
+    has_hit(g) && similar_surface(vec3(g.n), g.depth, other)
 }
 
 /// Pixel of `camera` (of a width × height image) that sees world point `p`, if any.
@@ -120,16 +154,34 @@ pub fn project(camera: &Camera, width: u32, height: u32, p: Vec3) -> Option<(u32
     Some((fx as u32, fy as u32))
 }
 
-/// Could the reservoir owned by texel `g` hold reservoir `r`'s sample? Every merge into a
-/// reservoir weighs samples by its owner's target, so exactly when that target is
-/// non-zero there. Only such owners' M count in Z. (Visibility is not part of it: samples
-/// arriving by reuse are not re-tested at their new owner, so a reservoir can hold samples
-/// its owner cannot see.)
-fn could_produce(scene: &Scene, g: &GBufferTexel, r: &Reservoir) -> bool {
-    has_hit(g) && target_pdf_of(scene, r, vec3(g.p), vec3(g.n), vec3(g.albedo)) > 0.0
+/// Could the reservoir owned by texel `g` have produced the sample of `r`? Every merge
+/// weighs samples by the owner's target, and (with visibility reuse) every reservoir keeps
+/// only samples its owner sees: so exactly when that target is non-zero there and the
+/// owner sees the sample (a shadow ray, counted in `rays`). Only such owners' M count in Z.
+fn could_produce(scene: &Scene, params: &FrameParams, g: &GBufferTexel, r: &Reservoir, rays: &mut u32) -> bool {
+    if !has_hit(g) || target_pdf_of(scene, r, vec3(g.p), vec3(g.n), vec3(g.albedo)) <= 0.0 {
+        return false;
+    }
+    if !visibility_reuse(params) {
+        return true; // reservoirs keep unseen samples too
+    }
+    let (q, nq, _) = light_point(scene, r.triangle, r.b1, r.b2);
+    *rays += 1;
+    scene.visible(vec3(g.p), vec3(g.n), q, nq)
+}
+
+/// Finish a merged reservoir `out` at its owner `g`: W by 1/M or 1/Z (`z` = the M of the
+/// reservoirs that could have produced its sample), then the owner's visibility test if the
+/// sample came from another reservoir (`foreign`).
+fn finish_merge(scene: &Scene, params: &FrameParams, out: &mut Reservoir, z: f32, foreign: bool, g: &GBufferTexel, rays: &mut u32) {
+    out.finalize(if unbiased(params) { z } else { out.m });
+    if foreign && visibility_reuse(params) {
+        keep_if_visible(scene, out, vec3(g.p), vec3(g.n), rays);
+    }
 }
 
 /// Pass 3: merge the reservoir of this surface point in the previous frame.
+#[allow(clippy::too_many_arguments)]
 pub fn temporal_pass(
     scene: &Scene,
     params: &FrameParams,
@@ -139,6 +191,7 @@ pub fn temporal_pass(
     previous: &[Reservoir],
     x: u32,
     y: u32,
+    rays: &mut u32,
 ) -> Reservoir {
     let pixel = (y * params.width + x) as usize;
     let cur = current[pixel];
@@ -152,29 +205,34 @@ pub fn temporal_pass(
     };
     let prev_pixel = (py * params.width + px) as usize;
     let gp = g_prev[prev_pixel];
-    if !similar(&g, &gp) {
+    // The previous G-buffer's depths are distances from the previous eye.
+    let prev_depth = (vec3(g.p) - vec3(params.prev_camera.eye)).length();
+    if !similar_surface(vec3(g.n), prev_depth, &gp) {
         return cur; // disocclusion: the surface was not visible there
     }
     let mut prev = previous[prev_pixel];
     prev.m = prev.m.min(params.temporal_cap * params.candidates as f32);
 
-    let mut rng = pass_rng(params, pixel as u32, 2);
+    let mut rng = pass_rng(params, pixel as u32, STREAM_TEMPORAL);
     let (p, n, albedo) = (vec3(g.p), vec3(g.n), vec3(g.albedo));
     let mut out = Reservoir::empty();
     out.merge(&cur, cur.target_pdf, rng.next_f32());
-    out.merge(&prev, target_pdf_of(scene, &prev, p, n, albedo), rng.next_f32());
+    let from_prev = out.merge(&prev, target_pdf_of(scene, &prev, p, n, albedo), rng.next_f32());
     let mut z = out.m;
     if unbiased(params) && out.has_sample() {
-        z = cur.m; // the pixel itself produced the sample's target: p̂ > 0 here
-        if could_produce(scene, &gp, &out) {
-            z += prev.m;
+        // The reservoir the sample came from could produce it; this pixel's own one could
+        // if it sees it, which `finish_merge` tests (else the sample is dropped anyway).
+        z = cur.m + prev.m;
+        if !from_prev && !could_produce(scene, params, &gp, &out, rays) {
+            z = cur.m;
         }
     }
-    out.finalize(z);
+    finish_merge(scene, params, &mut out, z, from_prev, &g, rays);
     out
 }
 
 /// Pass 4: merge up to `spatial_neighbours` similar neighbours within `spatial_radius`.
+#[allow(clippy::too_many_arguments)]
 pub fn spatial_pass(
     scene: &Scene,
     params: &FrameParams,
@@ -182,6 +240,7 @@ pub fn spatial_pass(
     input: &[Reservoir],
     x: u32,
     y: u32,
+    rays: &mut u32,
 ) -> Reservoir {
     let pixel = y * params.width + x;
     let own = input[pixel as usize];
@@ -190,19 +249,21 @@ pub fn spatial_pass(
         return own;
     }
     let (p, n, albedo) = (vec3(g.p), vec3(g.n), vec3(g.albedo));
-    let mut rng = pass_rng(params, pixel, 3 + params.spatial_pass);
+    let mut rng = pass_rng(params, pixel, STREAM_SPATIAL + params.spatial_pass);
     let mut out = Reservoir::empty();
     out.merge(&own, own.target_pdf, rng.next_f32());
     let mut used = [0u32; MAX_SPATIAL_NEIGHBOURS as usize];
     let mut n_used = 0usize;
+    // Which neighbour (index into `used`) the kept sample came from; none: this pixel's.
+    let mut source = INVALID;
     let k = params.spatial_neighbours.min(MAX_SPATIAL_NEIGHBOURS);
     let mut i = 0;
     while i < k {
-        // Uniform in the disk of the given radius.
+        // Uniform in the disk of the given radius about the pixel's centre.
         let r = params.spatial_radius * sqrt(rng.next_f32());
         let (s, c) = sin_cos(2.0 * PI * rng.next_f32());
-        let nx = x as f32 + r * c;
-        let ny = y as f32 + r * s;
+        let nx = x as f32 + 0.5 + r * c;
+        let ny = y as f32 + 0.5 + r * s;
         i += 1;
         if nx < 0.0 || ny < 0.0 || nx >= params.width as f32 || ny >= params.height as f32 {
             continue;
@@ -212,23 +273,26 @@ pub fn spatial_pass(
             continue;
         }
         let neighbour = input[q as usize];
-        out.merge(&neighbour, target_pdf_of(scene, &neighbour, p, n, albedo), rng.next_f32());
+        if out.merge(&neighbour, target_pdf_of(scene, &neighbour, p, n, albedo), rng.next_f32()) {
+            source = n_used as u32;
+        }
         used[n_used] = q;
         n_used += 1;
     }
     let mut z = out.m;
     if unbiased(params) && out.has_sample() {
+        // This pixel's own reservoir counts: it sees the sample, or `finish_merge` drops it.
         z = own.m;
         let mut j = 0;
         while j < n_used {
             let q = used[j] as usize;
-            if could_produce(scene, &gbuffer[q], &out) {
+            if j as u32 == source || could_produce(scene, params, &gbuffer[q], &out, rays) {
                 z += input[q].m;
             }
             j += 1;
         }
     }
-    out.finalize(z);
+    finish_merge(scene, params, &mut out, z, source != INVALID, &g, rays);
     out
 }
 
@@ -243,10 +307,16 @@ pub fn shade_pass(scene: &Scene, params: &FrameParams, g: &GBufferTexel, r: &Res
         return radiance;
     }
     let (p, n, albedo) = (vec3(g.p), vec3(g.n), vec3(g.albedo));
-    radiance += shade_reservoir(scene, r, p, n, albedo, rays);
-    if params.max_depth > 2 {
-        // Indirect light: bounce off the primary hit and continue with NEE.
-        let mut rng = pass_rng(params, pixel, 64);
+    radiance += if visibility_reuse(params) {
+        // The passes keep only samples this pixel sees: no shadow ray needed.
+        unshadowed_reservoir(scene, r, p, n, albedo)
+    } else {
+        shade_reservoir(scene, r, p, n, albedo, rays)
+    };
+    // Beyond the direct light of the emitters: a bounce continued by NEE path tracing gives
+    // the indirect light, and at max_depth 2 the sky's direct light (as NEE's bounce does).
+    if params.max_depth > 2 || vec3(params.sky) != Vec3::ZERO {
+        let mut rng = pass_rng(params, pixel, STREAM_SHADE);
         let s = SurfaceHit { p, n, front_face: g.front != 0, prim: g.prim };
         let mut state = PathState::camera(crate::intersect::Ray::new(p, n));
         if state.bounce(&s, albedo, params, &mut rng) {

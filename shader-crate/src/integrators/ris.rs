@@ -43,7 +43,7 @@ pub fn initial_candidates(scene: &Scene, params: &FrameParams, p: Vec3, n: Vec3,
     }
     let mut i = 0;
     while i < params.candidates {
-        let ls = sample_light(scene, params.light_sampling, rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let ls = sample_light(scene, params.light_sampling, rng);
         let p_hat = target_pdf(p, n, albedo, ls.p, ls.n, ls.emission);
         r.update(ls.triangle, ls.b1, ls.b2, p_hat / ls.pdf_area, p_hat, rng.next_f32());
         i += 1;
@@ -51,21 +51,27 @@ pub fn initial_candidates(scene: &Scene, params: &FrameParams, p: Vec3, n: Vec3,
     r
 }
 
-/// Shade a finalised reservoir: f · Le · G · V · W, one shadow ray.
-pub fn shade_reservoir(scene: &Scene, r: &Reservoir, p: Vec3, n: Vec3, albedo: Vec3, rays: &mut u32) -> Vec3 {
+/// A finalised reservoir's contribution without visibility: f · Le · G · W.
+pub fn unshadowed_reservoir(scene: &Scene, r: &Reservoir, p: Vec3, n: Vec3, albedo: Vec3) -> Vec3 {
     if !r.has_sample() || r.w <= 0.0 {
         return Vec3::ZERO;
     }
     let (q, nq, le) = light_point(scene, r.triangle, r.b1, r.b2);
-    let f = unshadowed(p, n, albedo, q, nq, le);
-    if f == Vec3::ZERO {
+    unshadowed(p, n, albedo, q, nq, le) * r.w
+}
+
+/// Shade a finalised reservoir: f · Le · G · V · W, one shadow ray.
+pub fn shade_reservoir(scene: &Scene, r: &Reservoir, p: Vec3, n: Vec3, albedo: Vec3, rays: &mut u32) -> Vec3 {
+    let contribution = unshadowed_reservoir(scene, r, p, n, albedo);
+    if contribution == Vec3::ZERO {
         return Vec3::ZERO;
     }
+    let (q, nq, _) = light_point(scene, r.triangle, r.b1, r.b2);
     *rays += 1;
     if !scene.visible(p, n, q, nq) {
         return Vec3::ZERO;
     }
-    f * r.w
+    contribution
 }
 
 /// Direct light at `s` by RIS (the `ris` integrator's first vertex).
