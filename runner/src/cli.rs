@@ -169,9 +169,10 @@ pub struct KernelArgs {
     /// in proportion to the image's smaller side, at least 3]
     #[arg(long, value_name = "PX")]
     pub spatial_radius: Option<f32>,
-    /// ReSTIR: how reused samples are weighted: unbiased (1/Z over the reservoirs that could
-    /// have produced the sample, with a shadow ray each) or biased (1/M: cheaper, darker)
-    /// [default: unbiased; biased when built without the `restir-unbiased` feature]
+    /// ReSTIR: how reused samples are weighted: unbiased (balance heuristic over the
+    /// reservoirs that could have produced the sample, a shadow ray each) or biased (1/M:
+    /// cheaper, ~1% darker on many-lights) [default: biased; unbiased when built with the
+    /// `restir-unbiased` feature]
     #[arg(long, value_enum)]
     pub restir_bias: Option<RestirBias>,
     /// ReSTIR: spatial reuse passes per frame (0 = none)

@@ -1,7 +1,10 @@
 //! The ReSTIR DI frame as a schedule of passes over buffers, shared by the GPU and CPU
 //! backends so both run exactly the same sequence. Two G-buffers alternate between
 //! "current" and "previous"; three reservoir buffers rotate so that no pass reads the
-//! buffer it writes, and the frame's final reservoirs become the next frame's history.
+//! buffer it writes. The temporal pass's result is the next frame's history; the spatial
+//! passes only improve what this frame shows. (Feeding spatial results back made every
+//! pixel's history a blend of its neighbours' and compounded the biased mode's darkening
+//! frame after frame; it also let one unlucky visibility test empty a whole history.)
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum RestirPass {
     Primary,
@@ -62,21 +65,28 @@ impl RestirSchedule {
     /// The passes of one frame with their buffers; the schedule then moves on a frame.
     pub fn frame(&mut self, spatial_passes: u32) -> Vec<(RestirPass, Slots)> {
         let (g_cur, g_prev) = (self.parity, 1 - self.parity);
-        let res_prev = self.prev;
-        let (mut a, mut b) = ((res_prev + 1) % 3, (res_prev + 2) % 3);
-        let slots = |res_in, res_out| Slots { g_cur, g_prev, res_in, res_out, res_prev };
+        let history = self.prev;
+        // This frame's initial reservoirs, and its temporal result (the next history).
+        let (initial, temporal) = ((history + 1) % 3, (history + 2) % 3);
+        let slots = |res_in, res_out, res_prev| Slots { g_cur, g_prev, res_in, res_out, res_prev };
         let mut plan = vec![
-            (RestirPass::Primary, slots(b, a)),
-            (RestirPass::Initial, slots(b, a)),
-            (RestirPass::Temporal, slots(a, b)),
+            (RestirPass::Primary, slots(temporal, initial, history)),
+            (RestirPass::Initial, slots(temporal, initial, history)),
+            (RestirPass::Temporal, slots(initial, temporal, history)),
         ];
-        std::mem::swap(&mut a, &mut b); // the latest result is now in `a`
+        // Spatial passes ping-pong between the two buffers free by now (this frame's initial
+        // reservoirs and the old history), leaving the temporal result alone. A pass that
+        // reads no history binds its input there too (read-only twice is allowed).
+        let free = [initial, history];
+        let mut input = temporal;
         for i in 0..spatial_passes {
-            plan.push((RestirPass::Spatial(i), slots(a, b)));
-            std::mem::swap(&mut a, &mut b);
+            let out = free[i as usize % 2];
+            plan.push((RestirPass::Spatial(i), slots(input, out, input)));
+            input = out;
         }
-        plan.push((RestirPass::Shade, slots(a, b)));
-        self.prev = a;
+        let spare = if input == initial { history } else { initial };
+        plan.push((RestirPass::Shade, slots(input, spare, input)));
+        self.prev = temporal;
         self.parity = 1 - self.parity;
         plan
     }
@@ -89,9 +99,9 @@ mod tests {
     #[test]
     fn passes_never_read_what_they_write_and_history_carries_over() {
         let mut s = RestirSchedule::default();
-        let mut last_final = None;
-        for frame in 0..6 {
-            let plan = s.frame(frame % 3);
+        let mut last_temporal = None;
+        for frame in 0..8 {
+            let plan = s.frame(frame % 4);
             for (pass, sl) in &plan {
                 assert_ne!(sl.res_in, sl.res_out, "{pass:?}");
                 assert_ne!(sl.res_prev, sl.res_out, "{pass:?}");
@@ -101,11 +111,15 @@ mod tests {
             for w in plan.windows(2).skip(1) {
                 assert_eq!(w[1].1.res_in, w[0].1.res_out, "{:?} -> {:?}", w[0].0, w[1].0);
             }
-            let final_res = plan.last().unwrap().1.res_in;
-            if let Some(f) = last_final {
-                assert_eq!(plan[0].1.res_prev, f, "history is last frame's final reservoirs");
+            let temporal = plan.iter().find(|(p, _)| *p == RestirPass::Temporal).unwrap().1;
+            if let Some(t) = last_temporal {
+                assert_eq!(temporal.res_prev, t, "history is last frame's temporal result");
             }
-            last_final = Some(final_res);
+            // No spatial pass or shade overwrites the history of the next frame.
+            for (pass, sl) in plan.iter().skip_while(|(p, _)| *p != RestirPass::Temporal).skip(1) {
+                assert_ne!(sl.res_out, temporal.res_out, "{pass:?} overwrites the history");
+            }
+            last_temporal = Some(temporal.res_out);
         }
     }
 }

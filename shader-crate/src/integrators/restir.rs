@@ -9,12 +9,14 @@
 //!    (or a sky), the light of a bounce continued by NEE path tracing.
 //!
 //! Every reservoir a pass writes holds a sample its owner *sees*, or none (W = 0): the
-//! initial pick is tested with a shadow ray, and a pass that takes a sample from another
-//! reservoir tests it from here. So visibility is reused along with the sample, and the
-//! shade pass needs no shadow ray of its own.
+//! initial pick is tested with a shadow ray; the temporal pass resamples the history's
+//! light with visibility in the target (a shadow ray from here), so an occluded history
+//! sample is simply not chosen; a spatial pass tests the neighbour's sample it picked. So
+//! visibility is reused along with the sample, and the shade pass needs no shadow ray.
+//! The temporal result is the next frame's history (see runner/src/restir.rs).
 //!
 //! W is normalised by 1/M (biased: reservoirs that could not have produced the sample
-//! still count) or, with `RESTIR_UNBIASED`, by 1/Z where Z counts the M of exactly the
+//! still count) or, with `RESTIR_UNBIASED`, by the balance heuristic over exactly the
 //! reservoirs that could have: those whose owner has a non-zero target for the sample and
 //! sees it (one shadow ray per such reservoir; Bitterli et al. 2020, Alg. 6 with the
 //! ray-traced test). Both are chosen at run time.
@@ -88,15 +90,17 @@ pub fn primary_hit(scene: &Scene, params: &FrameParams, x: u32, y: u32, rays: &m
     }
 }
 
-/// Keep reservoir `r` (owned by the surface point p, n) only if its owner sees the sample;
-/// else it keeps its M but no sample. One shadow ray.
-fn keep_if_visible(scene: &Scene, r: &mut Reservoir, p: Vec3, n: Vec3, rays: &mut u32) {
-    if !r.has_sample() || r.w <= 0.0 {
-        return;
-    }
+/// Whether the surface point (p, n) sees the light point of reservoir `r` (one shadow ray).
+fn sees(scene: &Scene, p: Vec3, n: Vec3, r: &Reservoir, rays: &mut u32) -> bool {
     let (q, nq, _) = light_point(scene, r.triangle, r.b1, r.b2);
     *rays += 1;
-    if !scene.visible(p, n, q, nq) {
+    scene.visible(p, n, q, nq)
+}
+
+/// Keep reservoir `r` (owned by the surface point p, n) only if its owner sees the sample;
+/// else it keeps its M but no sample.
+fn keep_if_visible(scene: &Scene, r: &mut Reservoir, p: Vec3, n: Vec3, rays: &mut u32) {
+    if r.has_sample() && r.w > 0.0 && !sees(scene, p, n, r, rays) {
         let m = r.m;
         *r = Reservoir::empty();
         r.m = m;
@@ -154,33 +158,41 @@ pub fn project(camera: &Camera, width: u32, height: u32, p: Vec3) -> Option<(u32
     Some((fx as u32, fy as u32))
 }
 
-/// Could the reservoir owned by texel `g` have produced the sample of `r`? Every merge
-/// weighs samples by the owner's target, and (with visibility reuse) every reservoir keeps
-/// only samples its owner sees: so exactly when that target is non-zero there and the
-/// owner sees the sample (a shadow ray, counted in `rays`). Only such owners' M count in Z.
-fn could_produce(scene: &Scene, params: &FrameParams, g: &GBufferTexel, r: &Reservoir, rays: &mut u32) -> bool {
-    if !has_hit(g) || target_pdf_of(scene, r, vec3(g.p), vec3(g.n), vec3(g.albedo)) <= 0.0 {
-        return false;
+/// The target of the reservoir owned by texel `g` for the sample of `r`, visibility
+/// included: every merge weighs samples by its owner's target and (with visibility reuse)
+/// every reservoir keeps only samples its owner sees, so this is zero exactly where that
+/// reservoir could not have produced the sample. `seen` skips the shadow ray when the
+/// sample is known to be visible there (it came from that reservoir).
+fn target_with_visibility(scene: &Scene, params: &FrameParams, g: &GBufferTexel, r: &Reservoir, seen: bool, rays: &mut u32) -> f32 {
+    if !has_hit(g) {
+        return 0.0;
     }
-    if !visibility_reuse(params) {
-        return true; // reservoirs keep unseen samples too
-    }
-    let (q, nq, _) = light_point(scene, r.triangle, r.b1, r.b2);
-    *rays += 1;
-    scene.visible(vec3(g.p), vec3(g.n), q, nq)
-}
-
-/// Finish a merged reservoir `out` at its owner `g`: W by 1/M or 1/Z (`z` = the M of the
-/// reservoirs that could have produced its sample), then the owner's visibility test if the
-/// sample came from another reservoir (`foreign`).
-fn finish_merge(scene: &Scene, params: &FrameParams, out: &mut Reservoir, z: f32, foreign: bool, g: &GBufferTexel, rays: &mut u32) {
-    out.finalize(if unbiased(params) { z } else { out.m });
-    if foreign && visibility_reuse(params) {
-        keep_if_visible(scene, out, vec3(g.p), vec3(g.n), rays);
+    let (p, n) = (vec3(g.p), vec3(g.n));
+    let target = target_pdf_of(scene, r, p, n, vec3(g.albedo));
+    if target <= 0.0 || seen || !visibility_reuse(params) || sees(scene, p, n, r, rays) {
+        target
+    } else {
+        0.0
     }
 }
 
-/// Pass 3: merge the reservoir of this surface point in the previous frame.
+/// The unbiased normaliser of a merged reservoir, in place of M in W = w_sum / (M p̂(y)):
+/// Σᵢ Mᵢ p̂ᵢ(y) / p̂_c(y), where p̂ᵢ are the targets (visibility included) of the reservoirs
+/// merged and c the one y came from. This is Bitterli et al.'s MIS form of 1/Z (2020,
+/// §4.3) with the balance heuristic: 1/Z weighs every reservoir that could have produced
+/// y alike, so a neighbour that would almost never pick y (a light right above this point,
+/// far from it) got as much say as this pixel, and rare picks became 100× fireflies.
+fn balance_normaliser(weighted_targets: f32, source_target: f32) -> f32 {
+    if source_target > 0.0 {
+        weighted_targets / source_target
+    } else {
+        0.0
+    }
+}
+
+/// Pass 3: merge the reservoir of this surface point in the previous frame. The history's
+/// light is a candidate only if this point sees it (visibility is part of the target here),
+/// so a hidden history sample never displaces this frame's own.
 #[allow(clippy::too_many_arguments)]
 pub fn temporal_pass(
     scene: &Scene,
@@ -215,23 +227,26 @@ pub fn temporal_pass(
 
     let mut rng = pass_rng(params, pixel as u32, STREAM_TEMPORAL);
     let (p, n, albedo) = (vec3(g.p), vec3(g.n), vec3(g.albedo));
+    let mut target_prev = target_pdf_of(scene, &prev, p, n, albedo);
+    if target_prev > 0.0 && visibility_reuse(params) && !sees(scene, p, n, &prev, rays) {
+        target_prev = 0.0;
+    }
     let mut out = Reservoir::empty();
     out.merge(&cur, cur.target_pdf, rng.next_f32());
-    let from_prev = out.merge(&prev, target_pdf_of(scene, &prev, p, n, albedo), rng.next_f32());
+    let from_prev = out.merge(&prev, target_prev, rng.next_f32());
     let mut z = out.m;
     if unbiased(params) && out.has_sample() {
-        // The reservoir the sample came from could produce it; this pixel's own one could
-        // if it sees it, which `finish_merge` tests (else the sample is dropped anyway).
-        z = cur.m + prev.m;
-        if !from_prev && !could_produce(scene, params, &gp, &out, rays) {
-            z = cur.m;
-        }
+        // This pixel sees the sample (it was chosen with visibility in the target).
+        let own = out.target_pdf;
+        let there = target_with_visibility(scene, params, &gp, &out, from_prev, rays);
+        z = balance_normaliser(cur.m * own + prev.m * there, if from_prev { there } else { own });
     }
-    finish_merge(scene, params, &mut out, z, from_prev, &g, rays);
+    out.finalize(z);
     out
 }
 
 /// Pass 4: merge up to `spatial_neighbours` similar neighbours within `spatial_radius`.
+/// Its result is shown (and read by a further spatial pass), never kept as history.
 #[allow(clippy::too_many_arguments)]
 pub fn spatial_pass(
     scene: &Scene,
@@ -281,18 +296,29 @@ pub fn spatial_pass(
     }
     let mut z = out.m;
     if unbiased(params) && out.has_sample() {
-        // This pixel's own reservoir counts: it sees the sample, or `finish_merge` drops it.
-        z = own.m;
+        // This pixel's own target: it sees the sample, or the test below drops it anyway.
+        let own_target = out.target_pdf;
+        let mut weighted = own.m * own_target;
+        let mut source_target = own_target;
         let mut j = 0;
         while j < n_used {
             let q = used[j] as usize;
-            if j as u32 == source || could_produce(scene, params, &gbuffer[q], &out, rays) {
-                z += input[q].m;
+            let from_here = j as u32 == source;
+            let t = target_with_visibility(scene, params, &gbuffer[q], &out, from_here, rays);
+            weighted += input[q].m * t;
+            if from_here {
+                source_target = t;
             }
             j += 1;
         }
+        z = balance_normaliser(weighted, source_target);
     }
-    finish_merge(scene, params, &mut out, z, source != INVALID, &g, rays);
+    out.finalize(z);
+    // A neighbour's sample may be hidden from here: test it, so that what this pass writes
+    // (shown now, or read by a further spatial pass) holds only samples seen from here.
+    if source != INVALID && visibility_reuse(params) {
+        keep_if_visible(scene, &mut out, p, n, rays);
+    }
     out
 }
 
