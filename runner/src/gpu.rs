@@ -106,6 +106,12 @@ pub struct GpuContext {
     timestamps: bool,
     layout: wgpu::BindGroupLayout,
     restir_layout: wgpu::BindGroupLayout,
+    module: wgpu::ShaderModule,
+    image_pipeline_layout: wgpu::PipelineLayout,
+    restir_pipeline_layout: wgpu::PipelineLayout,
+    /// Compute pipelines by entry point, made on first use: the driver compiles each one,
+    /// and a render that runs one integrator should not wait for all ten (on a cold NVIDIA
+    /// shader cache that was seconds).
     pipelines: HashMap<&'static str, wgpu::ComputePipeline>,
     /// Validation errors and device loss, reported by wgpu's callbacks.
     errors: Arc<Mutex<Option<String>>>,
@@ -144,7 +150,7 @@ impl GpuContext {
         let words = spirv_words();
         let image_entries = Integrator::IMAGE_KERNELS.iter().map(|i| i.entry_point());
         let restir_entries = RestirPass::ENTRY_POINTS.iter().map(|p| p.entry_point());
-        let names: Vec<&'static str> = image_entries.chain(restir_entries.clone()).collect();
+        let names: Vec<&'static str> = image_entries.chain(restir_entries).collect();
         let entry_points: Vec<wgpu::PassthroughShaderEntryPoint> = names
             .iter()
             .map(|name| wgpu::PassthroughShaderEntryPoint {
@@ -196,23 +202,6 @@ impl GpuContext {
             bind_group_layouts: &[Some(&layout), Some(&restir_layout)],
             immediate_size: 0,
         });
-        let restir_names: Vec<&'static str> = restir_entries.collect();
-        let pipelines = names
-            .iter()
-            .map(|&name| {
-                let pipeline_layout =
-                    if restir_names.contains(&name) { &restir_pipeline_layout } else { &image_layout };
-                let p = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(name),
-                    layout: Some(pipeline_layout),
-                    module: &module,
-                    entry_point: Some(name),
-                    compilation_options: Default::default(),
-                    cache: None,
-                });
-                (name, p)
-            })
-            .collect();
         let ctx = Self {
             device,
             queue,
@@ -221,11 +210,40 @@ impl GpuContext {
             timestamps,
             layout,
             restir_layout,
-            pipelines,
+            module,
+            image_pipeline_layout: image_layout,
+            restir_pipeline_layout,
+            pipelines: HashMap::new(),
             errors,
         };
         ctx.check_errors()?;
         Ok(ctx)
+    }
+
+    /// Make the pipelines `integrator` runs, if not made yet.
+    fn ensure_pipelines(&mut self, integrator: Integrator) -> Result<()> {
+        let entries: Vec<&'static str> = if integrator == Integrator::Restir {
+            RestirPass::ENTRY_POINTS.iter().map(|p| p.entry_point()).collect()
+        } else {
+            vec![integrator.entry_point()]
+        };
+        for name in entries {
+            if self.pipelines.contains_key(name) {
+                continue;
+            }
+            let layout =
+                if integrator == Integrator::Restir { &self.restir_pipeline_layout } else { &self.image_pipeline_layout };
+            let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(name),
+                layout: Some(layout),
+                module: &self.module,
+                entry_point: Some(name),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+            self.pipelines.insert(name, pipeline);
+        }
+        self.check_errors()
     }
 
     fn check_errors(&self) -> Result<()> {
@@ -541,6 +559,7 @@ impl GpuBackend {
         if self.in_flight.is_some() {
             bail!("internal: a pass was submitted before the previous one finished");
         }
+        self.ctx.ensure_pipelines(integrator)?;
         if integrator == Integrator::Restir {
             return self.submit_restir_frame(params);
         }
