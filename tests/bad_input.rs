@@ -236,3 +236,108 @@ fn extreme_emission_and_tiny_triangles_stay_finite() {
         assert!(img.pixels().all(|p| p.0.iter().all(|c| c.is_finite())), "{i}: non-finite pixel");
     }
 }
+
+/// Output is never lost or reported written when it was not: a write error (a full device
+/// behind a symbolic link) is reported; a failing run leaves an existing output untouched
+/// and creates no --out-dir; the scene file itself and generate's MTL are refused as --out.
+#[test]
+fn output_is_complete_or_untouched_and_failures_are_reported() {
+    let good = dir().join("keep.png");
+    let base = ["render", "--backend", "cpu", "--width", "8", "--height", "8", "--spp", "1", "--integrator", "ao"];
+    let mut args = base.to_vec();
+    args.extend(["--out", good.to_str().unwrap()]);
+    assert!(runner(&args, &[]).status.success());
+    let before = std::fs::read(&good).unwrap();
+    assert!(image::load_from_memory(&before).is_ok(), "a complete PNG");
+
+    // A PNG of a few hundred bytes written into a full device: reported, not "wrote".
+    if Path::new("/dev/full").exists() {
+        let link = dir().join("full.png");
+        let _ = std::fs::remove_file(&link);
+        std::os::unix::fs::symlink("/dev/full", &link).unwrap();
+        let mut args = base.to_vec();
+        args.extend(["--out", link.to_str().unwrap()]);
+        let o = runner(&args, &[]);
+        assert_fails_with(&o, "cannot write");
+        assert!(!String::from_utf8_lossy(&o.stderr).contains("wrote "));
+    }
+
+    // A run that fails on its scene leaves the old output and creates no --out-dir.
+    let bad = write("fails.obj", b"v 0 0 0\nf 1 2 3\n");
+    let frames = dir().join("never_created");
+    let _ = std::fs::remove_dir_all(&frames);
+    let mut args = base.to_vec();
+    args.extend(["--scene", bad.to_str().unwrap(), "--out", good.to_str().unwrap(), "--out-dir", frames.to_str().unwrap()]);
+    assert_fails_with(&runner(&args, &[]), "fails.obj");
+    assert_eq!(std::fs::read(&good).unwrap(), before, "the old output must be untouched");
+    assert!(!frames.exists(), "--out-dir created by a failed run");
+    // No temporary files are left beside the output.
+    let leftovers: Vec<_> = std::fs::read_dir(dir()).unwrap().flatten().filter(|e| e.file_name().to_string_lossy().contains(".partial-")).collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+
+    // The scene itself as --out, --out-dir that is a file, generate --out x.mtl.
+    let scene = write("self.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    let self_png = dir().join("self.png");
+    std::fs::copy(&scene, &self_png).unwrap();
+    let mut args = base.to_vec();
+    args.extend(["--scene", self_png.to_str().unwrap(), "--out", self_png.to_str().unwrap()]);
+    assert_fails_with(&runner(&args, &[]), "is the scene file itself");
+    let mut args = base.to_vec();
+    args.extend(["--out-dir", scene.to_str().unwrap(), "--out", good.to_str().unwrap()]);
+    assert_fails_with(&runner(&args, &[]), "is not a directory");
+    let mtl = dir().join("scene.mtl");
+    assert_fails_with(&runner(&["generate", "many-lights", "--out", mtl.to_str().unwrap()], &[]), "names the MTL file");
+}
+
+/// Inputs that are not regular files (a FIFO, a directory) end at once with one line,
+/// instead of blocking or reading forever; so does a reader that goes away.
+#[test]
+fn special_files_and_closed_pipes() {
+    let fifo = dir().join("scene_fifo.obj");
+    let _ = std::fs::remove_file(&fifo);
+    let made = Command::new("mkfifo").arg(&fifo).status().map(|s| s.success()).unwrap_or(false);
+    if made {
+        assert_fails_with(&render_scene(&fifo, &["--integrator", "ao"]), "not a regular file");
+    }
+    // `compare ... | head -0`: the reader is gone before we print.
+    let img = dir().join("pipe.exr");
+    assert!(runner(&["render", "--backend", "cpu", "--width", "4", "--height", "4", "--spp", "1", "--out", img.to_str().unwrap()], &[]).status.success());
+    let mut child = Command::new(env!("CARGO_BIN_EXE_runner"))
+        .args(["compare", img.to_str().unwrap(), img.to_str().unwrap()])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take()); // close the read end
+    let o = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains("panicked") && !err.contains("internal error"), "{err}");
+    assert!(matches!(o.status.code(), Some(0) | Some(141)), "{:?}: {err}", o.status);
+}
+
+/// Absurd counts are refused before any work starts.
+#[test]
+fn unbounded_work_is_refused() {
+    for (args, needle) in [
+        (&["render", "--backend", "cpu", "--candidates", "4294967295"][..], "--candidates"),
+        (&["bench", "--backend", "cpu", "--runs", "4294967295"][..], "--runs"),
+        (&["render", "--backend", "cpu", "--frames", "4294967295", "--spp", "2"][..], "2^32 samples"),
+    ] {
+        assert_fails_with(&runner(args, &[]), needle);
+    }
+}
+
+/// `compare` refuses images with NaN or infinite pixels instead of printing "rmse NaN".
+#[test]
+fn compare_refuses_non_finite_images() {
+    let good = dir().join("finite.exr");
+    let bad = dir().join("nan.exr");
+    let mut img = image::Rgb32FImage::from_pixel(4, 3, image::Rgb([0.5, 0.5, 0.5]));
+    img.save_with_format(&good, image::ImageFormat::OpenExr).unwrap();
+    img.put_pixel(2, 1, image::Rgb([f32::NAN, 0.0, f32::INFINITY]));
+    img.save_with_format(&bad, image::ImageFormat::OpenExr).unwrap();
+    let o = runner(&["compare", bad.to_str().unwrap(), good.to_str().unwrap()], &[]);
+    assert_fails_with(&o, "non-finite pixel at (2, 1)");
+    let o = runner(&["compare", good.to_str().unwrap(), bad.to_str().unwrap()], &[]);
+    assert_fails_with(&o, "the reference has a non-finite pixel");
+}

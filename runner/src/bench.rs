@@ -141,9 +141,12 @@ fn frame(backend: &mut dyn Backend, k: &KernelArgs, params: &FrameParams) -> Res
     Ok(stats)
 }
 
+/// Most timed runs of one bench: a median needs far fewer, and each run is a whole render.
+const MAX_RUNS: u32 = 10_000;
+
 pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
-    if args.runs == 0 {
-        crate::bail!("--runs must be at least 1");
+    if args.runs == 0 || args.runs > MAX_RUNS {
+        crate::bail!("--runs must be between 1 and {MAX_RUNS}");
     }
     if !(args.warmup >= 0.0 && args.warmup <= 600.0) {
         crate::bail!("--warmup must be between 0 and 600 seconds");

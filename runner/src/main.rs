@@ -33,9 +33,9 @@ fn main() -> ExitCode {
     }
     let result = match cli.command {
         Command::Render(args) => render_command(&args),
-        Command::Bench(args) => runner::bench::bench(&args).map(|r| {
-            println!("{}", if args.json { r.json() } else { r.table() });
-        }),
+        Command::Bench(args) => {
+            runner::bench::bench(&args).and_then(|r| print_stdout(&if args.json { r.json() } else { r.table() }))
+        }
         Command::Generate(args) => generate_command(&args),
         Command::Compare(args) => compare_command(&args),
         Command::View(args) => runner::viewer::app::check_args(&args)
@@ -60,8 +60,13 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     if !args.orbit.is_finite() {
         runner::bail!("--orbit must be a finite number of degrees");
     }
-    if let Some(dir) = &args.out_dir {
-        std::fs::create_dir_all(dir).context(|| format!("cannot create --out-dir '{}'", dir.display()))?;
+    if let Some(scene_file) = args.scene.scene.as_ref().filter(|p| p.is_file()) {
+        if std::fs::canonicalize(scene_file).ok() == std::fs::canonicalize(&args.out).ok() {
+            runner::bail!("--out '{}' is the scene file itself; it would be overwritten", args.out.display());
+        }
+    }
+    if let Some(dir) = args.out_dir.as_ref().filter(|d| d.exists() && !d.is_dir()) {
+        runner::bail!("--out-dir '{}' exists and is not a directory", dir.display());
     }
     let scene = load_scene(&args.scene)?;
     let mut params = frame_params(&args.scene, &args.kernel, &scene)?;
@@ -72,6 +77,10 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     }
     params.frame = args.first_frame * args.kernel.spp;
     params.sample_offset = args.first_frame * args.kernel.spp;
+    // Created only once the scene has loaded: a run that fails on its input leaves nothing.
+    if let Some(dir) = &args.out_dir {
+        std::fs::create_dir_all(dir).context(|| format!("cannot create --out-dir '{}'", dir.display()))?;
+    }
     let mut backend = open_backend(args.kernel.backend, &scene, params.width, params.height)?;
     let k = &args.kernel;
     eprintln!(
@@ -140,8 +149,11 @@ fn generate_command(args: &GenerateArgs) -> Result<()> {
     let mtl_path = args.out.with_extension("mtl");
     let mtl_name = mtl_path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let (obj, mtl) = runner::generate::to_obj(&generated, &mtl_name);
-    std::fs::write(&args.out, obj).context(|| format!("cannot write '{}'", args.out.display()))?;
-    std::fs::write(&mtl_path, mtl).context(|| format!("cannot write '{}'", mtl_path.display()))?;
+    if args.out.extension().is_some_and(|e| e.eq_ignore_ascii_case("mtl")) {
+        runner::bail!("--out '{}' names the MTL file; give the OBJ file (the MTL is written beside it)", args.out.display());
+    }
+    runner::output::write_file(&args.out, obj.as_bytes())?;
+    runner::output::write_file(&mtl_path, mtl.as_bytes())?;
     eprintln!("wrote {} and {} ({} triangles)", args.out.display(), mtl_path.display(), generated.triangles.len());
     Ok(())
 }
@@ -150,7 +162,7 @@ fn compare_command(args: &CompareArgs) -> Result<()> {
     let image = runner::output::read_image(&args.image)?;
     let reference = runner::output::read_image(&args.reference)?;
     let e = runner::output::compare(&image, &reference)?;
-    println!(
+    print_stdout(&format!(
         "rmse {:.6}  relmse {:.6}  max_abs {:.6}  identical {:.2}%  (mean {:.5} vs {:.5})",
         e.rmse,
         e.rel_mse,
@@ -158,6 +170,20 @@ fn compare_command(args: &CompareArgs) -> Result<()> {
         100.0 * e.identical,
         image.mean().dot(glam::Vec3::splat(1.0 / 3.0)),
         reference.mean().dot(glam::Vec3::splat(1.0 / 3.0)),
-    );
-    Ok(())
+    ))
+}
+
+/// Exit status of a program whose reader went away, as Unix tools report it (128 + SIGPIPE).
+const EXIT_BROKEN_PIPE: i32 = 141;
+
+/// Print a line of results; a reader that has gone away (`runner compare ... | head -0`)
+/// ends the program quietly, as it would any Unix tool, instead of a panic in `println!`.
+fn print_stdout(text: &str) -> Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match writeln!(out, "{text}").and_then(|()| out.flush()) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => std::process::exit(EXIT_BROKEN_PIPE),
+        Err(e) => Err(runner::error::Error(format!("cannot write to standard output: {e}"))),
+    }
 }

@@ -84,6 +84,7 @@ pub fn linear_to_srgb(x: f32) -> f32 {
 
 pub fn write_image(path: &Path, image: &Image) -> Result<()> {
     let what = || format!("cannot write '{}'", path.display());
+    let mut bytes = std::io::Cursor::new(Vec::new());
     match output_format(path)? {
         OutputFormat::Png => {
             let mut buf = RgbImage::new(image.width, image.height);
@@ -91,14 +92,43 @@ pub fn write_image(path: &Path, image: &Image) -> Result<()> {
                 let c = src.to_array().map(|x| (linear_to_srgb(x) * 255.0 + 0.5) as u8);
                 *dst = image::Rgb(c);
             }
-            buf.save_with_format(path, ImageFormat::Png).context(what)
+            buf.write_to(&mut bytes, ImageFormat::Png).context(what)?;
         }
         OutputFormat::Exr => {
             let mut buf = Rgb32FImage::new(image.width, image.height);
             for (dst, src) in buf.pixels_mut().zip(&image.pixels) {
                 *dst = image::Rgb(src.to_array());
             }
-            buf.save_with_format(path, ImageFormat::OpenExr).context(what)
+            buf.write_to(&mut bytes, ImageFormat::OpenExr).context(what)?;
+        }
+    }
+    write_file(path, bytes.get_ref())
+}
+
+/// Write `bytes` to `path` so that it is either the whole new file or untouched: into a
+/// temporary file beside it, flushed to disk, then renamed over it. Every failure is
+/// reported (a full disk, a file-size limit, a write error that a dropped buffer would have
+/// swallowed). A symbolic link is written through to what it names; something that is not a
+/// regular file (a device such as /dev/null, a FIFO) is written to directly.
+pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write;
+    let what = || format!("cannot write '{}'", path.display());
+    let target = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+    if target.exists() && !target.is_file() {
+        let mut f = std::fs::OpenOptions::new().write(true).open(&target).context(what)?;
+        return f.write_all(bytes).and_then(|()| f.flush()).context(what);
+    }
+    let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let tmp = target.with_file_name(format!(".{name}.partial-{}", std::process::id()));
+    let written = std::fs::File::create(&tmp).and_then(|mut f| {
+        f.write_all(bytes)?;
+        f.sync_all()
+    });
+    match written.and_then(|()| std::fs::rename(&tmp, &target)) {
+        Ok(()) => Ok(()),
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            Err(crate::error::Error(format!("{}: {e}", what())))
         }
     }
 }
@@ -149,6 +179,16 @@ pub fn compare(image: &Image, reference: &Image) -> Result<ImageError> {
             reference.width,
             reference.height
         );
+    }
+    for (img, which) in [(image, "the image"), (reference, "the reference")] {
+        if let Some(i) = img.pixels.iter().position(|p| !p.is_finite()) {
+            bail!(
+                "{which} has a non-finite pixel at ({}, {}): {}; errors cannot be measured",
+                i % img.width.max(1) as usize,
+                i / img.width.max(1) as usize,
+                img.pixels[i]
+            );
+        }
     }
     let (mut se, mut rel, mut max_abs, mut same) = (0.0f64, 0.0f64, 0.0f64, 0usize);
     for (a, b) in image.pixels.iter().zip(&reference.pixels) {

@@ -129,8 +129,33 @@ fn load_mtl_text(text: &str) -> tobj::MTLLoadResult {
     tobj::load_mtl_buf(&mut text.as_bytes())
 }
 
+/// Largest OBJ file read (~30M triangles) and largest MTL file: past these a file is not a
+/// scene someone made but a device, a runaway export or an attack on our memory.
+pub const MAX_OBJ_BYTES: u64 = 2 << 30;
+pub const MAX_MTL_BYTES: u64 = 64 << 20;
+
+/// Read a whole input file of at most `limit` bytes. Only regular files: a FIFO would block
+/// forever and /dev/zero would never end.
+pub fn read_input_file(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::{Error, ErrorKind, Read};
+    let md = std::fs::metadata(path)?;
+    if !md.is_file() {
+        return Err(Error::new(ErrorKind::InvalidInput, "not a regular file"));
+    }
+    let too_large = || Error::new(ErrorKind::InvalidData, format!("larger than the limit of {limit} bytes"));
+    if md.len() > limit {
+        return Err(too_large());
+    }
+    let mut bytes = Vec::with_capacity(md.len() as usize);
+    std::fs::File::open(path)?.take(limit + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(too_large()); // it grew while we read
+    }
+    Ok(bytes)
+}
+
 fn load_mtl_file(path: &Path) -> tobj::MTLLoadResult {
-    match std::fs::read(path) {
+    match read_input_file(path, MAX_MTL_BYTES) {
         Ok(bytes) => load_mtl_text(&String::from_utf8_lossy(&bytes)),
         Err(_) => Err(tobj::LoadError::OpenFileFailed),
     }
@@ -138,7 +163,7 @@ fn load_mtl_file(path: &Path) -> tobj::MTLLoadResult {
 
 /// Load an OBJ file (and the MTL files it names, relative to it).
 pub fn load_obj(path: &Path) -> Result<Scene> {
-    let bytes = match std::fs::read(path) {
+    let bytes = match read_input_file(path, MAX_OBJ_BYTES) {
         Ok(bytes) => bytes,
         Err(e) => bail!("cannot read scene '{}': {e}", path.display()),
     };

@@ -16,6 +16,9 @@ pub const MAX_IMAGE_SIDE: u32 = 32_768;
 pub const MAX_IMAGE_PIXELS: u64 = 1 << 27;
 /// Most samples per pixel (and AO rays per sample): keeps sample indices far from overflow.
 pub const MAX_SPP: u32 = 1 << 24;
+/// Most RIS candidates per pixel: 65,536 is already ~100× past where more stop helping,
+/// and every one costs a light sample in every pixel of every frame.
+pub const MAX_CANDIDATES: u32 = 1 << 16;
 
 /// The Cornell box in the source tree (tests load it as a file; the binary embeds it).
 pub fn default_scene_path() -> PathBuf {
@@ -171,8 +174,8 @@ pub fn frame_params(args: &SceneArgs, kernel: &KernelArgs, scene: &Scene) -> Res
         }
         eprintln!("warning: the scene has no emitters; only --sky lights it");
     }
-    if kernel.candidates == 0 {
-        bail!("--candidates must be at least 1");
+    if kernel.candidates == 0 || kernel.candidates > MAX_CANDIDATES {
+        bail!("--candidates must be between 1 and {MAX_CANDIDATES}, got {}", kernel.candidates);
     }
     if !(kernel.temporal_cap > 0.0 && kernel.temporal_cap.is_finite()) {
         bail!("--temporal-cap must be a positive number");
