@@ -213,7 +213,8 @@ fn same_command_and_seed_give_identical_bytes() {
 
 #[test]
 fn extreme_emission_and_tiny_triangles_stay_finite() {
-    // A 1e30 emitter, a 1e-6-sized triangle fan, huge and tiny geometry in one scene.
+    // A 1e20 emitter (the largest radiance allowed), a 1e-6-sized triangle fan, huge and tiny
+    // geometry in one scene.
     let mut obj = String::from("mtllib x.mtl\nusemtl hot\nv -1 2 -1\nv 1 2 -1\nv 0 2 1\nf 1 3 2\nusemtl grey\n");
     obj.push_str("v -50 0 -50\nv 50 0 -50\nv 0 0 50\nf 4 6 5\n");
     let mut k = 7;
@@ -222,7 +223,7 @@ fn extreme_emission_and_tiny_triangles_stay_finite() {
         obj.push_str(&format!("v {x} 0.5 0\nv {} 0.5 0\nv {x} 0.500001 1e-7\nf {k} {} {}\n", x + 1e-6, k + 1, k + 2));
         k += 3;
     }
-    write("x.mtl", b"newmtl hot\nKd 0.9 0.9 0.9\nKe 1e30 1e30 1e30\nnewmtl grey\nKd 0.99 0.99 0.99\n");
+    write("x.mtl", b"newmtl hot\nKd 0.9 0.9 0.9\nKe 1e20 1e20 1e20\nnewmtl grey\nKd 0.99 0.99 0.99\n");
     let scene = write("extreme.obj", obj.as_bytes());
     for i in ["pt", "nee", "mis", "ris", "restir", "ao"] {
         let out = dir().join(format!("extreme_{i}.exr"));
@@ -340,4 +341,56 @@ fn compare_refuses_non_finite_images() {
     assert_fails_with(&o, "non-finite pixel at (2, 1)");
     let o = runner(&["compare", good.to_str().unwrap(), bad.to_str().unwrap()], &[]);
     assert_fails_with(&o, "the reference has a non-finite pixel");
+}
+
+/// Files people have: a byte-order mark, tabs, comments after data — they load; texture
+/// and normal indices out of range (or near the i64 limits) are errors with line numbers,
+/// not panics inside the OBJ reader.
+#[test]
+fn obj_quirks_load_and_bad_texcoord_or_normal_indices_name_the_line() {
+    let mtl = write("quirks.mtl", b"\xEF\xBB\xBFnewmtl\tlamp # a lamp\nKd 0.5 0.5 0.5\nKe 4 4 4 # bright\n");
+    let _ = mtl;
+    let obj = "\u{feff}mtllib quirks.mtl\nv 0 0 0 # origin\nv\t1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nusemtl\tlamp\nf 1/1/1 2/1/1 3/1/1 # the lamp\n";
+    let o = render_scene(&write("quirks.obj", obj.as_bytes()), &["--eye", "0.2,0.2,2", "--target", "0.2,0.2,0"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("3 triangles (1 emissive)") || err.contains("1 triangles (1 emissive)"), "the lamp's Ke was lost: {err}");
+
+    let base = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n";
+    for (face, needle) in [
+        ("f 1/-5 2/-5 3/-5", "quirk1.obj:6: texture coordinate index -5 is out of range (1 texture coordinates so far)"),
+        ("f 1//-9 2//1 3//1", "quirk2.obj:6: normal index -9 is out of range"),
+        ("f 1//9223372036854775807 2//1 3//1", "normal index 9223372036854775807 is out of range"),
+        ("f 1/-9223372036854775808 2/1 3/1", "texture coordinate index -9223372036854775808 is out of range"),
+        ("f 1/x 2/1 3/1", "bad texture coordinate index"),
+    ]
+    .iter()
+    .enumerate()
+    .map(|(i, (f, n))| (format!("quirk{}.obj", i + 1), f, n))
+    .map(|(name, f, n)| (write(&name, format!("{base}{f}\n").as_bytes()), *n))
+    .collect::<Vec<_>>()
+    {
+        assert_fails_with(&render_scene(&face, &["--integrator", "ao"]), needle);
+    }
+}
+
+/// Values that overflow are errors, not black or infinite images: a radiance of 1e39 (read
+/// as infinity) or inf in the MTL, with its line; a sky near f32's limit; a camera line
+/// without eye and target.
+#[test]
+fn overflowing_values_are_errors_with_their_line() {
+    for (i, ke) in ["1e39 1 1", "inf 0 0", "1 nan 1"].iter().enumerate() {
+        let mtl_name = format!("hot{i}.mtl");
+        write(&mtl_name, format!("newmtl m\nKd 0.5 0.5 0.5\nKe {ke}\n").as_bytes());
+        let obj = write(&format!("hot{i}.obj"), format!("mtllib {mtl_name}\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl m\nf 1 2 3\n").as_bytes());
+        assert_fails_with(&render_scene(&obj, &[]), &format!("{mtl_name}:3: Ke value"));
+    }
+    let tri = write("plain.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    assert_fails_with(&render_scene(&tri, &["--sky", "3e38,3e38,3e38"]), "--sky must be between 0 and");
+    let bare = write("bare_camera.obj", b"# camera:\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    assert_fails_with(&render_scene(&bare, &["--integrator", "ao"]), "bare_camera.obj:1: the camera line needs");
+    assert_fails_with(
+        &render_scene(&tri, &["--integrator", "ao", "--eye", "3e38,273,0", "--target", "-3e38,273,0"]),
+        "not finite",
+    );
 }

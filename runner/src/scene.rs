@@ -112,21 +112,65 @@ const CORNELL_BOX_MTL: &str = include_str!("../../assets/cornell_box.mtl");
 
 /// The built-in Cornell box (assets/cornell_box.obj).
 pub fn cornell_box() -> Result<Scene> {
-    parse_obj("cornell-box", CORNELL_BOX_OBJ, |_| load_mtl_text(CORNELL_BOX_MTL))
+    parse_obj("cornell-box", CORNELL_BOX_OBJ, |_| load_mtl_text("cornell_box.mtl", CORNELL_BOX_MTL))
 }
 
-/// Parse MTL text with tobj, after checking what tobj would panic on: colour lines
-/// (Ka, Kd, Ks, Ke, Tf) need three numbers.
-fn load_mtl_text(text: &str) -> tobj::MTLLoadResult {
+/// Largest radiance a material or the sky may have: 2²⁴ samples of it still sum to a
+/// finite f32 (a Ke of 1e39 was read as infinity and gave an all-black image).
+pub const MAX_RADIANCE: f32 = 1e20;
+
+/// What people's OBJ and MTL files have that tobj does not read: a UTF-8 byte-order mark,
+/// tabs between words (`usemtl<TAB>name`) and comments after data (`v 0 0 0 # top`).
+/// Lines keep their numbers; whole-line comments (and the `# camera:` line) stay.
+fn normalise(text: &str) -> String {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let mut out = String::with_capacity(text.len());
     for line in text.lines() {
+        let line = line.replace('\t', " ");
+        let data = if line.trim_start().starts_with('#') {
+            line.as_str()
+        } else {
+            // A comment starts at a '#' after a space (names such as "m#2" keep theirs).
+            match line.find(" #") {
+                Some(i) => &line[..i],
+                None => line.as_str(),
+            }
+        };
+        out.push_str(data.trim_end());
+        out.push('\n');
+    }
+    out
+}
+
+/// Parse MTL text (named `name` in messages) with tobj, after checking what tobj would
+/// panic on or silently misread: colour lines (Ka, Kd, Ks, Ke, Tf) need three numbers, and
+/// every number must be finite and radiances at most `MAX_RADIANCE`. Those are errors with
+/// the line number (`Err`); a file tobj cannot read is `Ok(Err(..))`, a warning.
+fn load_mtl_text(name: &str, text: &str) -> Result<tobj::MTLLoadResult> {
+    let text = normalise(text);
+    for (i, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
-        if let Some("Ka" | "Kd" | "Ks" | "Ke" | "Tf") = words.next() {
-            if words.take(3).filter(|w| w.parse::<f32>().is_ok()).count() < 3 {
-                return Err(tobj::LoadError::MaterialParseError);
+        let key = words.next().unwrap_or("");
+        let count = match key {
+            "Ka" | "Kd" | "Ks" | "Ke" | "Tf" => 3,
+            "Ns" | "Ni" | "d" | "Tr" | "Pr" | "Pm" => 1,
+            _ => continue,
+        };
+        let values: Vec<&str> = words.take(count).collect();
+        if values.len() < count || values.iter().any(|w| w.parse::<f32>().is_err()) {
+            if count == 3 {
+                return Ok(Err(tobj::LoadError::MaterialParseError));
+            }
+            continue;
+        }
+        for w in values {
+            let x: f32 = w.parse().unwrap_or(f32::NAN);
+            if !x.is_finite() || x.abs() > MAX_RADIANCE {
+                bail!("{name}:{}: {key} value '{w}' is not a finite number of at most {MAX_RADIANCE:e}", i + 1);
             }
         }
     }
-    tobj::load_mtl_buf(&mut text.as_bytes())
+    Ok(tobj::load_mtl_buf(&mut text.as_bytes()))
 }
 
 /// Largest OBJ file read (~30M triangles) and largest MTL file: past these a file is not a
@@ -154,10 +198,10 @@ pub fn read_input_file(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
     Ok(bytes)
 }
 
-fn load_mtl_file(path: &Path) -> tobj::MTLLoadResult {
+fn load_mtl_file(path: &Path) -> Result<tobj::MTLLoadResult> {
     match read_input_file(path, MAX_MTL_BYTES) {
-        Ok(bytes) => load_mtl_text(&String::from_utf8_lossy(&bytes)),
-        Err(_) => Err(tobj::LoadError::OpenFileFailed),
+        Ok(bytes) => load_mtl_text(&path.display().to_string(), &String::from_utf8_lossy(&bytes)),
+        Err(_) => Ok(Err(tobj::LoadError::OpenFileFailed)),
     }
 }
 
@@ -176,8 +220,8 @@ pub fn load_obj(path: &Path) -> Result<Scene> {
 /// it gives): the loader without a file system, for fuzzing and tests.
 pub fn parse_obj_text(name: &str, obj: &str, mtl: Option<&str>) -> Result<Scene> {
     parse_obj(name, obj, |_| match mtl {
-        Some(text) => load_mtl_text(text),
-        None => Err(tobj::LoadError::OpenFileFailed),
+        Some(text) => load_mtl_text("fuzz.mtl", text),
+        None => Ok(Err(tobj::LoadError::OpenFileFailed)),
     })
 }
 
@@ -185,10 +229,20 @@ pub fn parse_obj_text(name: &str, obj: &str, mtl: Option<&str>) -> Result<Scene>
 fn parse_obj(
     name: &str,
     text: &str,
-    load_mtl: impl Fn(&Path) -> tobj::MTLLoadResult,
+    load_mtl: impl Fn(&Path) -> Result<tobj::MTLLoadResult>,
 ) -> Result<Scene> {
-    check_lines(name, text)?;
     let camera = parse_camera_hint(name, text)?;
+    let text = &normalise(text);
+    check_lines(name, text)?;
+    // An MTL error that must stop the load (it names its line) travels past tobj here.
+    let mtl_error = std::cell::RefCell::new(None);
+    let load_mtl = |path: &Path| match load_mtl(path) {
+        Ok(result) => result,
+        Err(e) => {
+            mtl_error.borrow_mut().get_or_insert(e);
+            Err(tobj::LoadError::MaterialParseError)
+        }
+    };
 
     let options = tobj::LoadOptions {
         triangulate: true,
@@ -199,6 +253,9 @@ fn parse_obj(
     };
     let (models, mtl_result) = tobj::load_obj_buf(&mut text.as_bytes(), &options, load_mtl)
         .map_err(|e| Error(format!("cannot load scene '{name}': {e}")))?;
+    if let Some(e) = mtl_error.into_inner() {
+        return Err(e);
+    }
     let mut warnings = Vec::new();
     let mut materials: Vec<Material> = match mtl_result {
         Ok(mtls) => mtls.iter().map(material_from_mtl).collect(),
@@ -261,6 +318,9 @@ fn material_from_mtl(m: &tobj::Material) -> Material {
 /// vertices, and reports bad indices without a line number.
 fn check_lines(name: &str, text: &str) -> Result<()> {
     let mut vertices: i64 = 0;
+    // Texture coordinates and normals so far: their indices in faces are checked too
+    // (tobj overflows on indices such as -9223372036854775808).
+    let (mut texcoords, mut normals): (i64, i64) = (0, 0);
     for (i, line) in text.lines().enumerate() {
         let n = i + 1;
         let mut words = line.split_whitespace();
@@ -279,27 +339,46 @@ fn check_lines(name: &str, text: &str) -> Result<()> {
                 }
                 vertices += 1;
             }
+            Some("vt") => texcoords += 1,
+            Some("vn") => normals += 1,
             Some("f") => {
                 let refs: Vec<&str> = words.collect();
                 if refs.len() < 3 {
                     bail!("{name}:{n}: face has {} vertices; a face needs at least 3", refs.len());
                 }
                 for r in refs {
-                    let index = r.split('/').next().unwrap_or("");
+                    let mut parts = r.split('/');
+                    let index = parts.next().unwrap_or("");
                     let k: i64 = index
                         .parse()
                         .map_err(|_| Error(format!("{name}:{n}: bad face index '{r}'")))?;
-                    if k == 0 {
-                        bail!("{name}:{n}: face index 0 (OBJ indices start at 1)");
-                    }
-                    let resolved = if k < 0 { vertices + k + 1 } else { k };
-                    if resolved < 1 || resolved > vertices {
-                        bail!("{name}:{n}: face index {k} is out of range ({vertices} vertices so far)");
+                    check_index(name, n, "face index", k, vertices, "vertices")?;
+                    for (what, count, kind) in [("texture coordinate index", texcoords, "texture coordinates"), ("normal index", normals, "normals")] {
+                        match parts.next() {
+                            None | Some("") => {}
+                            Some(w) => {
+                                let k: i64 = w.parse().map_err(|_| Error(format!("{name}:{n}: bad {what} in '{r}'")))?;
+                                check_index(name, n, what, k, count, kind)?;
+                            }
+                        }
                     }
                 }
             }
             _ => {}
         }
+    }
+    Ok(())
+}
+
+/// An OBJ index (1-based, or negative: counted back from the last one so far) must name
+/// one of the `count` elements defined before it.
+fn check_index(name: &str, line: usize, what: &str, k: i64, count: i64, kind: &str) -> Result<()> {
+    if k == 0 {
+        bail!("{name}:{line}: {what} 0 (OBJ indices start at 1)");
+    }
+    let resolved = if k < 0 { count.saturating_add(k).saturating_add(1) } else { k };
+    if resolved < 1 || resolved > count {
+        bail!("{name}:{line}: {what} {k} is out of range ({count} {kind} so far)");
     }
     Ok(())
 }
@@ -320,15 +399,19 @@ fn parse_camera_hint(name: &str, text: &str) -> Result<Option<CameraHint>> {
         up: Vec3::Y,
         fov: 45.0,
     };
+    let (mut has_eye, mut has_target) = (false, false);
     for kv in line.trim_start()["# camera:".len()..].split_whitespace() {
         let (k, v) = kv.split_once('=').ok_or_else(bad)?;
         match k {
-            "eye" => hint.eye = crate::cli::parse_vec3(v).map_err(|_| bad())?,
-            "target" => hint.target = crate::cli::parse_vec3(v).map_err(|_| bad())?,
+            "eye" => (hint.eye, has_eye) = (crate::cli::parse_vec3(v).map_err(|_| bad())?, true),
+            "target" => (hint.target, has_target) = (crate::cli::parse_vec3(v).map_err(|_| bad())?, true),
             "up" => hint.up = crate::cli::parse_vec3(v).map_err(|_| bad())?,
             "fov" => hint.fov = v.parse().map_err(|_| bad())?,
             _ => return Err(bad()),
         }
+    }
+    if !(has_eye && has_target) {
+        bail!("{name}:{}: the camera line needs at least eye=X,Y,Z and target=X,Y,Z", n + 1);
     }
     Ok(Some(hint))
 }

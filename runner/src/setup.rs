@@ -160,8 +160,8 @@ pub fn frame_params(args: &SceneArgs, kernel: &KernelArgs, scene: &Scene) -> Res
     if kernel.max_depth == 0 {
         bail!("--max-depth must be at least 1");
     }
-    if kernel.sky.min_element() < 0.0 {
-        bail!("--sky must not be negative");
+    if kernel.sky.min_element() < 0.0 || kernel.sky.max_element() > crate::scene::MAX_RADIANCE {
+        bail!("--sky must be between 0 and {:e} per channel", crate::scene::MAX_RADIANCE);
     }
     let needs_lights = kernel.integrator != Integrator::Ao;
     if needs_lights && scene.lights.is_empty() {
