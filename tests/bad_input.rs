@@ -394,3 +394,23 @@ fn overflowing_values_are_errors_with_their_line() {
         "not finite",
     );
 }
+
+/// Small things: a `usemtl` no MTL defines is named in a warning; typo'd built-in counts, a
+/// NaN exposure and a missing subcommand are errors.
+#[test]
+fn unknown_materials_warn_and_small_mistakes_are_errors() {
+    write("known.mtl", b"newmtl lamp\nKe 1 1 1\n");
+    let obj = write("unknown_mtl.obj", b"mtllib known.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl lamp\nf 1 2 3\nusemtl nosuch\nf 1 3 2\n");
+    let o = render_scene(&obj, &["--eye", "0.2,0.2,2", "--target", "0.2,0.2,0"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("unknown_mtl.obj:7: usemtl 'nosuch' names no material"), "{err}");
+    assert!(!err.contains("'lamp' names no"), "{err}");
+    for name in ["rocks-0.5", "rocks-1e-300"] {
+        assert_fails_with(&runner(&["render", "--backend", "cpu", "--scene", name], &[]), "bad triangle count");
+    }
+    assert_fails_with(&runner(&["view", "--exposure", "NaN"], &[]), "--exposure");
+    let o = runner(&[], &[]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).starts_with("error:"), "{}", String::from_utf8_lossy(&o.stderr));
+}

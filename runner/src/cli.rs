@@ -6,6 +6,9 @@ use glam::Vec3;
 
 #[derive(Parser, Debug)]
 #[command(
+    // No subcommand is an error (one `error:` line and the usage), not a help page.
+    subcommand_required = true,
+    arg_required_else_help = false,
     name = "runner",
     version,
     about = "GPU ray tracer in Rust: the same no_std kernels run as SPIR-V through wgpu and on the CPU",

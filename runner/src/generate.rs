@@ -62,7 +62,9 @@ fn parse_count(s: &str) -> Option<usize> {
         _ => (&s[..], 1),
     };
     let x: f64 = num.parse().ok()?;
-    (x > 0.0 && x * mult as f64 <= 50e6).then_some((x * mult as f64) as usize)
+    let count = x * mult as f64;
+    // A whole number of triangles, at least one: "rocks-0.5" and "rocks-1e-300" are typos.
+    (count >= 1.0 && count <= 50e6 && count.fract() == 0.0).then_some(count as usize)
 }
 
 /// The built-in scene called `name`, or None if there is none by that name.

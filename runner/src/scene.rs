@@ -258,7 +258,10 @@ fn parse_obj(
     }
     let mut warnings = Vec::new();
     let mut materials: Vec<Material> = match mtl_result {
-        Ok(mtls) => mtls.iter().map(material_from_mtl).collect(),
+        Ok(mtls) => {
+            warnings.extend(unknown_material_warnings(name, text, &mtls));
+            mtls.iter().map(material_from_mtl).collect()
+        }
         Err(e) => {
             if models.iter().any(|m| m.mesh.material_id.is_some()) || text.contains("mtllib") {
                 warnings.push(format!(
@@ -305,6 +308,28 @@ fn parse_obj(
     scene.warnings = warnings;
     scene.camera = camera;
     Ok(scene)
+}
+
+/// One warning per `usemtl` name that no loaded MTL defines (its faces turn grey), with the
+/// line it first appears on.
+fn unknown_material_warnings(name: &str, text: &str, known: &[tobj::Material]) -> Vec<String> {
+    let mut seen: Vec<&str> = Vec::new();
+    let mut warnings = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        if words.next() != Some("usemtl") {
+            continue;
+        }
+        let material = words.next().unwrap_or("");
+        if !seen.contains(&material) && !known.iter().any(|m| m.name == material) {
+            warnings.push(format!(
+                "{name}:{}: usemtl '{material}' names no material of the MTL files; its faces are grey",
+                i + 1
+            ));
+        }
+        seen.push(material);
+    }
+    warnings
 }
 
 fn material_from_mtl(m: &tobj::Material) -> Material {

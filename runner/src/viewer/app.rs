@@ -32,6 +32,9 @@ pub fn check_args(args: &ViewArgs) -> Result<()> {
     if args.kernel.backend == BackendChoice::Cpu {
         bail!("`view` draws with a Vulkan device (a GPU, or lavapipe); --backend cpu is for `render` and `bench`");
     }
+    if !(args.exposure.is_finite() && args.exposure > 0.0) {
+        bail!("--exposure must be a positive number, got {}", args.exposure);
+    }
     if let Some(path) = &args.screenshot {
         if args.exit_after.is_none() {
             bail!("--screenshot saves the last frame of --exit-after N; give both (P saves while viewing)");
@@ -334,7 +337,7 @@ impl App {
                 }
             };
             write_image(&path, &image)?;
-            if path.extension().is_some_and(|e| e == "png") {
+            if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
                 write_image(&path.with_extension("exr"), &image)?;
             }
             eprintln!("saved {} ({} frames accumulated)", path.display(), self.state.accumulated);
