@@ -414,3 +414,17 @@ fn unknown_materials_warn_and_small_mistakes_are_errors() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).starts_with("error:"), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// Degeneracy is scale-free: a ground of edge 2e10 and a triangle of area ~1e-30 are
+/// triangles (their area once overflowed or underflowed to "zero area"), collinear
+/// vertices are not.
+#[test]
+fn huge_and_tiny_triangles_are_kept_and_only_flat_ones_dropped() {
+    let obj = "v -1e10 0 -1e10\nv 1e10 0 -1e10\nv 0 0 1e10\nf 1 3 2\n\
+               v 0 1 0\nv 1e-15 1 0\nv 0 1.000001 1e-15\nf 4 5 6\n\
+               v 0 2 0\nv 1 2 0\nv 2 2 0\nf 7 8 9\n";
+    let o = render_scene(&write("scales.obj", obj.as_bytes()), &["--integrator", "ao", "--eye", "0,5,5", "--target", "0,0,0"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("dropped 1 degenerate triangle(s)") && err.contains("2 triangles"), "{err}");
+}

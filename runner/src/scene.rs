@@ -101,9 +101,22 @@ impl Scene {
     }
 }
 
+/// Whether a triangle spans an area, tested free of scale: its edges are divided by their
+/// largest component first, so a ground of edge 2e10 (whose area overflows f32) and a
+/// triangle of area 1e-30 (whose area underflows) are kept, and only collinear or
+/// coincident vertices are dropped.
 fn is_proper(t: &Triangle) -> bool {
-    let a = t.area();
-    a.is_finite() && a > 0.0
+    let (p0, p1, p2) = t.vertices();
+    let (e1, e2) = (p1 - p0, p2 - p0);
+    let scale = e1.abs().max(e2.abs()).max_element();
+    if !(scale > 0.0 && scale.is_finite()) {
+        return false;
+    }
+    let n = (e1 / scale).cross(e2 / scale);
+    // The kernels take the normal from the unscaled cross product: it must be finite and
+    // not flush to zero (edges up to ~1e19, areas down to ~1e-38).
+    let c = t.cross();
+    n != Vec3::ZERO && n.is_finite() && c != Vec3::ZERO && c.is_finite()
 }
 
 /// The default scene, built into the binary so it works wherever the binary runs.

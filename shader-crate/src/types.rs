@@ -43,11 +43,21 @@ impl Triangle {
         let (p0, p1, p2) = self.vertices();
         (p1 - p0).cross(p2 - p0)
     }
+    /// Area and unit normal scale the cross product by its largest component first: its
+    /// squared length overflows f32 for edges past ~1e9 and underflows for areas below
+    /// ~1e-19, both of which real scenes have (a 2e10 ground, a 1e-15 fillet).
     pub fn area(&self) -> f32 {
-        0.5 * self.cross().length()
+        let c = self.cross();
+        let s = c.abs().max_element();
+        if s > 0.0 {
+            0.5 * s * (c / s).length()
+        } else {
+            0.0
+        }
     }
     pub fn normal(&self) -> Vec3 {
-        self.cross().normalize()
+        let c = self.cross();
+        (c / c.abs().max_element()).normalize()
     }
     /// Point at barycentrics (b1, b2): (1 - b1 - b2) p0 + b1 p1 + b2 p2.
     pub fn point(&self, b1: f32, b2: f32) -> Vec3 {
