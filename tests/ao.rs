@@ -3,10 +3,10 @@ mod common;
 
 use common::{grey, quad, z_score};
 use glam::Vec3;
-use runner::scene::Scene;
 use kernels::integrators::ao::ambient_occlusion;
 use kernels::rng::Rng;
 use kernels::types::Triangle;
+use runner::scene::Scene;
 
 /// Half size of the "infinite" planes: far beyond every AO ray below (≤ 5 long, from
 /// points within 3 of the origin), and large against the scene's other lengths.
@@ -47,7 +47,12 @@ fn open_plane_is_fully_unoccluded() {
     let scene = Scene::new(floor(HUGE), vec![grey(0.5)]).unwrap();
     let scene = scene.kernel();
     let mut rng = Rng::from_seed(1);
-    for p in [Vec3::ZERO, Vec3::new(0.01, 0.02, 0.0), Vec3::new(123.0, -45.0, 0.0), Vec3::new(-9000.0, 9000.0, 0.0)] {
+    for p in [
+        Vec3::ZERO,
+        Vec3::new(0.01, 0.02, 0.0),
+        Vec3::new(123.0, -45.0, 0.0),
+        Vec3::new(-9000.0, 9000.0, 0.0),
+    ] {
         let v = ambient_occlusion(&scene, p, Vec3::Z, 10_000, f32::INFINITY, &mut rng);
         assert_eq!(v, 1.0, "at {p}");
     }
@@ -69,9 +74,16 @@ fn corner_of_two_planes_matches_the_analytic_value() {
     let scene = Scene::new(tris, vec![grey(0.5)]).unwrap();
     let scene = scene.kernel();
     let rays = 200_000u32;
-    for (i, (d, distance)) in [(0.01f32, 1.0f32), (0.25, 1.0), (0.5, 1.0), (0.9, 1.0), (2.0, 5.0), (3.0, 1.0)]
-        .into_iter()
-        .enumerate()
+    for (i, (d, distance)) in [
+        (0.01f32, 1.0f32),
+        (0.25, 1.0),
+        (0.5, 1.0),
+        (0.9, 1.0),
+        (2.0, 5.0),
+        (3.0, 1.0),
+    ]
+    .into_iter()
+    .enumerate()
     {
         let mut rng = Rng::from_seed(100 + i as u32);
         let p = Vec3::new(d, 0.0, 0.0);

@@ -27,8 +27,23 @@ fn write(name: &str, text: &[u8]) -> PathBuf {
 /// Render `scene` on the CPU into a scratch PNG with extra flags.
 fn render_scene(scene: &Path, extra: &[&str]) -> Output {
     let out = dir().join("out.png");
-    let mut args = vec!["render", "--backend", "cpu", "--width", "16", "--height", "16", "--spp", "1"];
-    args.extend(["--scene", scene.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let mut args = vec![
+        "render",
+        "--backend",
+        "cpu",
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--spp",
+        "1",
+    ];
+    args.extend([
+        "--scene",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     args.extend(extra);
     runner(&args, &[])
 }
@@ -40,8 +55,15 @@ fn assert_fails_with(o: &Output, needle: &str) {
     assert_eq!(o.status.code(), Some(1), "exit code; stderr:\n{err}");
     let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("error:")).collect();
     assert_eq!(lines.len(), 1, "expected one error line:\n{err}");
-    assert!(lines[0].contains(needle), "'{needle}' not in '{}'", lines[0]);
-    assert!(!err.contains("panicked") && !err.contains("RUST_BACKTRACE"), "{err}");
+    assert!(
+        lines[0].contains(needle),
+        "'{needle}' not in '{}'",
+        lines[0]
+    );
+    assert!(
+        !err.contains("panicked") && !err.contains("RUST_BACKTRACE"),
+        "{err}"
+    );
 }
 
 const TRI: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
@@ -49,18 +71,58 @@ const TRI: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
 #[test]
 fn malformed_obj_files_name_the_line() {
     let cases: &[(&str, String, &str)] = &[
-        ("badnum.obj", "v 0 0 0\nv 1 zz 0\nv 0 1 0\nf 1 2 3\n".into(), "badnum.obj:2: bad vertex coordinate 'zz'"),
-        ("nan.obj", "v 0 0 0\nv 1 0 0\nv 0 NaN 0\nf 1 2 3\n".into(), "nan.obj:3: vertex coordinate 'NaN' is not a finite number"),
-        ("inf.obj", "v inf 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".into(), "inf.obj:1: vertex coordinate 'inf' is not a finite number"),
-        ("short.obj", "v 0 0\n".into(), "short.obj:1: vertex needs 3 coordinates"),
-        ("oob.obj", format!("{TRI}f 1 2 9\n"), "oob.obj:4: face index 9 is out of range (3 vertices so far)"),
-        ("zero.obj", format!("{TRI}f 0 1 2\n"), "zero.obj:4: face index 0"),
-        ("negoob.obj", format!("{TRI}f -1 -2 -4\n"), "negoob.obj:4: face index -4 is out of range"),
-        ("two.obj", format!("{TRI}f 1 2\n"), "two.obj:4: face has 2 vertices"),
-        ("badidx.obj", format!("{TRI}f 1 2 three\n"), "badidx.obj:4: bad face index 'three'"),
+        (
+            "badnum.obj",
+            "v 0 0 0\nv 1 zz 0\nv 0 1 0\nf 1 2 3\n".into(),
+            "badnum.obj:2: bad vertex coordinate 'zz'",
+        ),
+        (
+            "nan.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 NaN 0\nf 1 2 3\n".into(),
+            "nan.obj:3: vertex coordinate 'NaN' is not a finite number",
+        ),
+        (
+            "inf.obj",
+            "v inf 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".into(),
+            "inf.obj:1: vertex coordinate 'inf' is not a finite number",
+        ),
+        (
+            "short.obj",
+            "v 0 0\n".into(),
+            "short.obj:1: vertex needs 3 coordinates",
+        ),
+        (
+            "oob.obj",
+            format!("{TRI}f 1 2 9\n"),
+            "oob.obj:4: face index 9 is out of range (3 vertices so far)",
+        ),
+        (
+            "zero.obj",
+            format!("{TRI}f 0 1 2\n"),
+            "zero.obj:4: face index 0",
+        ),
+        (
+            "negoob.obj",
+            format!("{TRI}f -1 -2 -4\n"),
+            "negoob.obj:4: face index -4 is out of range",
+        ),
+        (
+            "two.obj",
+            format!("{TRI}f 1 2\n"),
+            "two.obj:4: face has 2 vertices",
+        ),
+        (
+            "badidx.obj",
+            format!("{TRI}f 1 2 three\n"),
+            "badidx.obj:4: bad face index 'three'",
+        ),
         ("empty.obj", String::new(), "the scene has no triangles"),
         ("points.obj", TRI.into(), "the scene has no triangles"),
-        ("allflat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n".into(), "the scene has no triangles"),
+        (
+            "allflat.obj",
+            "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n".into(),
+            "the scene has no triangles",
+        ),
     ];
     for (name, text, needle) in cases {
         let o = render_scene(&write(name, text.as_bytes()), &[]);
@@ -70,31 +132,58 @@ fn malformed_obj_files_name_the_line() {
 
 #[test]
 fn files_that_are_not_obj_or_do_not_exist() {
-    let noise: Vec<u8> = (0..4096u32).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8).collect();
-    assert_fails_with(&render_scene(&write("noise.obj", &noise), &[]), "no triangles");
-    assert_fails_with(&render_scene(Path::new("/nonexistent/x.obj"), &[]), "cannot read scene '/nonexistent/x.obj'");
+    let noise: Vec<u8> = (0..4096u32)
+        .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+        .collect();
+    assert_fails_with(
+        &render_scene(&write("noise.obj", &noise), &[]),
+        "no triangles",
+    );
+    assert_fails_with(
+        &render_scene(Path::new("/nonexistent/x.obj"), &[]),
+        "cannot read scene '/nonexistent/x.obj'",
+    );
     assert_fails_with(&render_scene(&dir(), &[]), "cannot read scene");
-    assert_fails_with(&render_scene(Path::new("no-such-scene"), &[]), "no built-in scene of that name");
+    assert_fails_with(
+        &render_scene(Path::new("no-such-scene"), &[]),
+        "no built-in scene of that name",
+    );
 }
 
 #[test]
 fn missing_or_broken_mtl_warns_and_uses_grey() {
-    for (name, mtl) in [("nomtl.obj", None), ("badmtl.obj", Some("newmtl m\nKd 1 x\n"))] {
+    for (name, mtl) in [
+        ("nomtl.obj", None),
+        ("badmtl.obj", Some("newmtl m\nKd 1 x\n")),
+    ] {
         if let Some(text) = mtl {
             write("bad.mtl", text.as_bytes());
         }
-        let lib = if mtl.is_some() { "bad.mtl" } else { "missing.mtl" };
-        let obj = write(name, format!("mtllib {lib}\n{TRI}usemtl m\nf 1 2 3\n").as_bytes());
+        let lib = if mtl.is_some() {
+            "bad.mtl"
+        } else {
+            "missing.mtl"
+        };
+        let obj = write(
+            name,
+            format!("mtllib {lib}\n{TRI}usemtl m\nf 1 2 3\n").as_bytes(),
+        );
         let o = render_scene(&obj, &["--integrator", "ao"]);
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(o.status.success(), "{err}");
-        assert!(err.contains("warning: materials of") && err.contains("grey default"), "{err}");
+        assert!(
+            err.contains("warning: materials of") && err.contains("grey default"),
+            "{err}"
+        );
     }
 }
 
 #[test]
 fn degenerate_triangles_are_dropped_and_counted() {
-    let obj = write("degen.obj", format!("{TRI}v 5 0 0\nf 1 2 3\nf 1 2 4\nf 2 2 3\n").as_bytes());
+    let obj = write(
+        "degen.obj",
+        format!("{TRI}v 5 0 0\nf 1 2 3\nf 1 2 4\nf 2 2 3\n").as_bytes(),
+    );
     let o = render_scene(&obj, &["--integrator", "ao"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
@@ -109,9 +198,24 @@ fn a_scene_without_emitters() {
         assert_fails_with(&render_scene(&obj, &["--integrator", i]), "no emitters");
     }
     // Lit by the sky instead: a warning, and a real image.
-    let o = render_scene(&obj, &["--integrator", "nee", "--sky", "1,1,1", "--eye", "0.2,0.2,2", "--target", "0.2,0.2,0"]);
+    let o = render_scene(
+        &obj,
+        &[
+            "--integrator",
+            "nee",
+            "--sky",
+            "1,1,1",
+            "--eye",
+            "0.2,0.2,2",
+            "--target",
+            "0.2,0.2,0",
+        ],
+    );
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success() && err.contains("warning: the scene has no emitters"), "{err}");
+    assert!(
+        o.status.success() && err.contains("warning: the scene has no emitters"),
+        "{err}"
+    );
     // AO needs no lights.
     assert!(render_scene(&obj, &["--integrator", "ao"]).status.success());
 }
@@ -130,7 +234,10 @@ fn absurd_or_contradictory_options() {
         (&["--fov", "-5"], "--fov must be in (0, 180)"),
         (&["--fov", "180"], "--fov must be in (0, 180)"),
         (&["--eye", "1,2,3", "--target", "1,2,3"], "same point"),
-        (&["--eye", "0,0,0", "--target", "0,5,0", "--up", "0,1,0"], "parallel"),
+        (
+            &["--eye", "0,0,0", "--target", "0,5,0", "--up", "0,1,0"],
+            "parallel",
+        ),
         (&["--up", "0,0,0"], "--up"),
         (&["--eye", "1,2"], "expected X,Y,Z"),
         (&["--eye", "1,nan,2"], "not a finite number"),
@@ -144,7 +251,13 @@ fn absurd_or_contradictory_options() {
     let out = dir().join("absurd.png");
     for (extra, needle) in cases {
         // Only the flag under test: every case must fail before any rendering.
-        let mut args = vec!["render", "--backend", "cpu", "--scene", cornell.to_str().unwrap()];
+        let mut args = vec![
+            "render",
+            "--backend",
+            "cpu",
+            "--scene",
+            cornell.to_str().unwrap(),
+        ];
         args.extend(["--out", out.to_str().unwrap()]);
         args.extend(*extra);
         let o = runner(&args, &[]);
@@ -157,7 +270,18 @@ fn absurd_or_contradictory_options() {
 
 #[test]
 fn unwritable_or_unknown_outputs_fail_before_rendering() {
-    let base = ["render", "--backend", "cpu", "--width", "8", "--height", "8", "--spp", "1", "--out"];
+    let base = [
+        "render",
+        "--backend",
+        "cpu",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--spp",
+        "1",
+        "--out",
+    ];
     for (out, needle) in [
         ("/nonexistent-dir/x.png", "does not exist"),
         ("picture.jpg", "unknown image format"),
@@ -172,13 +296,29 @@ fn unwritable_or_unknown_outputs_fail_before_rendering() {
 #[test]
 fn no_vulkan_adapter_falls_back_or_fails_as_asked() {
     // Point the Vulkan loader at no driver at all.
-    let env = [("VK_ICD_FILENAMES", "/nonexistent.json"), ("VK_DRIVER_FILES", "/nonexistent.json")];
+    let env = [
+        ("VK_ICD_FILENAMES", "/nonexistent.json"),
+        ("VK_DRIVER_FILES", "/nonexistent.json"),
+    ];
     let out = dir().join("fallback.png");
-    let args = ["render", "--width", "8", "--height", "8", "--spp", "1", "--out", out.to_str().unwrap()];
+    let args = [
+        "render",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--spp",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ];
     let o = runner(&args, &env);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
-    assert!(err.contains("note: no Vulkan adapter found; rendering on the CPU backend"), "{err}");
+    assert!(
+        err.contains("note: no Vulkan adapter found; rendering on the CPU backend"),
+        "{err}"
+    );
     let mut gpu = args.to_vec();
     gpu.extend(["--backend", "gpu"]);
     assert_fails_with(&runner(&gpu, &env), "no Vulkan adapter");
@@ -186,10 +326,19 @@ fn no_vulkan_adapter_falls_back_or_fails_as_asked() {
 
 #[test]
 fn buffer_limits_are_checked_with_numbers() {
-    let limits = wgpu::Limits { max_storage_buffer_binding_size: 1000, max_buffer_size: 4000, ..Default::default() };
+    let limits = wgpu::Limits {
+        max_storage_buffer_binding_size: 1000,
+        max_buffer_size: 4000,
+        ..Default::default()
+    };
     assert!(runner::gpu::check_buffer_size(&limits, "the triangle buffer", 1000).is_ok());
     let e = runner::gpu::check_buffer_size(&limits, "the triangle buffer", 1048).unwrap_err();
-    assert!(e.0.contains("the triangle buffer needs 1048 bytes") && e.0.contains("limit of 1000") && e.0.contains("by 48"), "{e}");
+    assert!(
+        e.0.contains("the triangle buffer needs 1048 bytes")
+            && e.0.contains("limit of 1000")
+            && e.0.contains("by 48"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -199,15 +348,33 @@ fn same_command_and_seed_give_identical_bytes() {
             .map(|k| {
                 let out = dir().join(format!("det_{integrator}_{backend}_{k}.exr"));
                 let o = runner(
-                    &["render", "--integrator", integrator, "--backend", backend, "--width", "24", "--height", "16",
-                      "--spp", "3", "--seed", "42", "--out", out.to_str().unwrap()],
+                    &[
+                        "render",
+                        "--integrator",
+                        integrator,
+                        "--backend",
+                        backend,
+                        "--width",
+                        "24",
+                        "--height",
+                        "16",
+                        "--spp",
+                        "3",
+                        "--seed",
+                        "42",
+                        "--out",
+                        out.to_str().unwrap(),
+                    ],
                     &[],
                 );
                 assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
                 std::fs::read(&out).unwrap()
             })
             .collect();
-        assert!(files[0] == files[1], "{integrator} on {backend}: outputs differ");
+        assert!(
+            files[0] == files[1],
+            "{integrator} on {backend}: outputs differ"
+        );
     }
 }
 
@@ -215,26 +382,62 @@ fn same_command_and_seed_give_identical_bytes() {
 fn extreme_emission_and_tiny_triangles_stay_finite() {
     // A 1e20 emitter (the largest radiance allowed), a 1e-6-sized triangle fan, huge and tiny
     // geometry in one scene.
-    let mut obj = String::from("mtllib x.mtl\nusemtl hot\nv -1 2 -1\nv 1 2 -1\nv 0 2 1\nf 1 3 2\nusemtl grey\n");
+    let mut obj = String::from(
+        "mtllib x.mtl\nusemtl hot\nv -1 2 -1\nv 1 2 -1\nv 0 2 1\nf 1 3 2\nusemtl grey\n",
+    );
     obj.push_str("v -50 0 -50\nv 50 0 -50\nv 0 0 50\nf 4 6 5\n");
     let mut k = 7;
     for i in 0..50 {
         let x = i as f32 * 1e-6;
-        obj.push_str(&format!("v {x} 0.5 0\nv {} 0.5 0\nv {x} 0.500001 1e-7\nf {k} {} {}\n", x + 1e-6, k + 1, k + 2));
+        obj.push_str(&format!(
+            "v {x} 0.5 0\nv {} 0.5 0\nv {x} 0.500001 1e-7\nf {k} {} {}\n",
+            x + 1e-6,
+            k + 1,
+            k + 2
+        ));
         k += 3;
     }
-    write("x.mtl", b"newmtl hot\nKd 0.9 0.9 0.9\nKe 1e20 1e20 1e20\nnewmtl grey\nKd 0.99 0.99 0.99\n");
+    write(
+        "x.mtl",
+        b"newmtl hot\nKd 0.9 0.9 0.9\nKe 1e20 1e20 1e20\nnewmtl grey\nKd 0.99 0.99 0.99\n",
+    );
     let scene = write("extreme.obj", obj.as_bytes());
     for i in ["pt", "nee", "mis", "ris", "restir", "ao"] {
         let out = dir().join(format!("extreme_{i}.exr"));
         let o = runner(
-            &["render", "--scene", scene.to_str().unwrap(), "--integrator", i, "--backend", "cpu", "--width", "24",
-              "--height", "24", "--spp", "4", "--eye", "0,1,4", "--target", "0,0.5,0", "--out", out.to_str().unwrap()],
+            &[
+                "render",
+                "--scene",
+                scene.to_str().unwrap(),
+                "--integrator",
+                i,
+                "--backend",
+                "cpu",
+                "--width",
+                "24",
+                "--height",
+                "24",
+                "--spp",
+                "4",
+                "--eye",
+                "0,1,4",
+                "--target",
+                "0,0.5,0",
+                "--out",
+                out.to_str().unwrap(),
+            ],
             &[],
         );
-        assert!(o.status.success(), "{i}: {}", String::from_utf8_lossy(&o.stderr));
+        assert!(
+            o.status.success(),
+            "{i}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
         let img = image::open(&out).unwrap().to_rgb32f();
-        assert!(img.pixels().all(|p| p.0.iter().all(|c| c.is_finite())), "{i}: non-finite pixel");
+        assert!(
+            img.pixels().all(|p| p.0.iter().all(|c| c.is_finite())),
+            "{i}: non-finite pixel"
+        );
     }
 }
 
@@ -244,7 +447,19 @@ fn extreme_emission_and_tiny_triangles_stay_finite() {
 #[test]
 fn output_is_complete_or_untouched_and_failures_are_reported() {
     let good = dir().join("keep.png");
-    let base = ["render", "--backend", "cpu", "--width", "8", "--height", "8", "--spp", "1", "--integrator", "ao"];
+    let base = [
+        "render",
+        "--backend",
+        "cpu",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--spp",
+        "1",
+        "--integrator",
+        "ao",
+    ];
     let mut args = base.to_vec();
     args.extend(["--out", good.to_str().unwrap()]);
     assert!(runner(&args, &[]).status.success());
@@ -268,12 +483,27 @@ fn output_is_complete_or_untouched_and_failures_are_reported() {
     let frames = dir().join("never_created");
     let _ = std::fs::remove_dir_all(&frames);
     let mut args = base.to_vec();
-    args.extend(["--scene", bad.to_str().unwrap(), "--out", good.to_str().unwrap(), "--out-dir", frames.to_str().unwrap()]);
+    args.extend([
+        "--scene",
+        bad.to_str().unwrap(),
+        "--out",
+        good.to_str().unwrap(),
+        "--out-dir",
+        frames.to_str().unwrap(),
+    ]);
     assert_fails_with(&runner(&args, &[]), "fails.obj");
-    assert_eq!(std::fs::read(&good).unwrap(), before, "the old output must be untouched");
+    assert_eq!(
+        std::fs::read(&good).unwrap(),
+        before,
+        "the old output must be untouched"
+    );
     assert!(!frames.exists(), "--out-dir created by a failed run");
     // No temporary files are left beside the output.
-    let leftovers: Vec<_> = std::fs::read_dir(dir()).unwrap().flatten().filter(|e| e.file_name().to_string_lossy().contains(".partial-")).collect();
+    let leftovers: Vec<_> = std::fs::read_dir(dir())
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().contains(".partial-"))
+        .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
 
     // The scene itself as --out, --out-dir that is a file, generate --out x.mtl.
@@ -281,13 +511,29 @@ fn output_is_complete_or_untouched_and_failures_are_reported() {
     let self_png = dir().join("self.png");
     std::fs::copy(&scene, &self_png).unwrap();
     let mut args = base.to_vec();
-    args.extend(["--scene", self_png.to_str().unwrap(), "--out", self_png.to_str().unwrap()]);
+    args.extend([
+        "--scene",
+        self_png.to_str().unwrap(),
+        "--out",
+        self_png.to_str().unwrap(),
+    ]);
     assert_fails_with(&runner(&args, &[]), "is the scene file itself");
     let mut args = base.to_vec();
-    args.extend(["--out-dir", scene.to_str().unwrap(), "--out", good.to_str().unwrap()]);
+    args.extend([
+        "--out-dir",
+        scene.to_str().unwrap(),
+        "--out",
+        good.to_str().unwrap(),
+    ]);
     assert_fails_with(&runner(&args, &[]), "is not a directory");
     let mtl = dir().join("scene.mtl");
-    assert_fails_with(&runner(&["generate", "many-lights", "--out", mtl.to_str().unwrap()], &[]), "names the MTL file");
+    assert_fails_with(
+        &runner(
+            &["generate", "many-lights", "--out", mtl.to_str().unwrap()],
+            &[],
+        ),
+        "names the MTL file",
+    );
 }
 
 /// Inputs that are not regular files (a FIFO, a directory) end at once with one line,
@@ -296,13 +542,37 @@ fn output_is_complete_or_untouched_and_failures_are_reported() {
 fn special_files_and_closed_pipes() {
     let fifo = dir().join("scene_fifo.obj");
     let _ = std::fs::remove_file(&fifo);
-    let made = Command::new("mkfifo").arg(&fifo).status().map(|s| s.success()).unwrap_or(false);
+    let made = Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .map(|s| s.success())
+        .unwrap_or(false);
     if made {
-        assert_fails_with(&render_scene(&fifo, &["--integrator", "ao"]), "not a regular file");
+        assert_fails_with(
+            &render_scene(&fifo, &["--integrator", "ao"]),
+            "not a regular file",
+        );
     }
     // `compare ... | head -0`: the reader is gone before we print.
     let img = dir().join("pipe.exr");
-    assert!(runner(&["render", "--backend", "cpu", "--width", "4", "--height", "4", "--spp", "1", "--out", img.to_str().unwrap()], &[]).status.success());
+    assert!(runner(
+        &[
+            "render",
+            "--backend",
+            "cpu",
+            "--width",
+            "4",
+            "--height",
+            "4",
+            "--spp",
+            "1",
+            "--out",
+            img.to_str().unwrap()
+        ],
+        &[]
+    )
+    .status
+    .success());
     let mut child = Command::new(env!("CARGO_BIN_EXE_runner"))
         .args(["compare", img.to_str().unwrap(), img.to_str().unwrap()])
         .stdout(std::process::Stdio::piped())
@@ -312,17 +582,41 @@ fn special_files_and_closed_pipes() {
     drop(child.stdout.take()); // close the read end
     let o = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!err.contains("panicked") && !err.contains("internal error"), "{err}");
-    assert!(matches!(o.status.code(), Some(0) | Some(141)), "{:?}: {err}", o.status);
+    assert!(
+        !err.contains("panicked") && !err.contains("internal error"),
+        "{err}"
+    );
+    assert!(
+        matches!(o.status.code(), Some(0) | Some(141)),
+        "{:?}: {err}",
+        o.status
+    );
 }
 
 /// Absurd counts are refused before any work starts.
 #[test]
 fn unbounded_work_is_refused() {
     for (args, needle) in [
-        (&["render", "--backend", "cpu", "--candidates", "4294967295"][..], "--candidates"),
-        (&["bench", "--backend", "cpu", "--runs", "4294967295"][..], "--runs"),
-        (&["render", "--backend", "cpu", "--frames", "4294967295", "--spp", "2"][..], "2^32 samples"),
+        (
+            &["render", "--backend", "cpu", "--candidates", "4294967295"][..],
+            "--candidates",
+        ),
+        (
+            &["bench", "--backend", "cpu", "--runs", "4294967295"][..],
+            "--runs",
+        ),
+        (
+            &[
+                "render",
+                "--backend",
+                "cpu",
+                "--frames",
+                "4294967295",
+                "--spp",
+                "2",
+            ][..],
+            "2^32 samples",
+        ),
     ] {
         assert_fails_with(&runner(args, &[]), needle);
     }
@@ -334,12 +628,20 @@ fn compare_refuses_non_finite_images() {
     let good = dir().join("finite.exr");
     let bad = dir().join("nan.exr");
     let mut img = image::Rgb32FImage::from_pixel(4, 3, image::Rgb([0.5, 0.5, 0.5]));
-    img.save_with_format(&good, image::ImageFormat::OpenExr).unwrap();
+    img.save_with_format(&good, image::ImageFormat::OpenExr)
+        .unwrap();
     img.put_pixel(2, 1, image::Rgb([f32::NAN, 0.0, f32::INFINITY]));
-    img.save_with_format(&bad, image::ImageFormat::OpenExr).unwrap();
-    let o = runner(&["compare", bad.to_str().unwrap(), good.to_str().unwrap()], &[]);
+    img.save_with_format(&bad, image::ImageFormat::OpenExr)
+        .unwrap();
+    let o = runner(
+        &["compare", bad.to_str().unwrap(), good.to_str().unwrap()],
+        &[],
+    );
     assert_fails_with(&o, "non-finite pixel at (2, 1)");
-    let o = runner(&["compare", good.to_str().unwrap(), bad.to_str().unwrap()], &[]);
+    let o = runner(
+        &["compare", good.to_str().unwrap(), bad.to_str().unwrap()],
+        &[],
+    );
     assert_fails_with(&o, "the reference has a non-finite pixel");
 }
 
@@ -348,13 +650,22 @@ fn compare_refuses_non_finite_images() {
 /// not panics inside the OBJ reader.
 #[test]
 fn obj_quirks_load_and_bad_texcoord_or_normal_indices_name_the_line() {
-    let mtl = write("quirks.mtl", b"\xEF\xBB\xBFnewmtl\tlamp # a lamp\nKd 0.5 0.5 0.5\nKe 4 4 4 # bright\n");
+    let mtl = write(
+        "quirks.mtl",
+        b"\xEF\xBB\xBFnewmtl\tlamp # a lamp\nKd 0.5 0.5 0.5\nKe 4 4 4 # bright\n",
+    );
     let _ = mtl;
     let obj = "\u{feff}mtllib quirks.mtl\nv 0 0 0 # origin\nv\t1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nusemtl\tlamp\nf 1/1/1 2/1/1 3/1/1 # the lamp\n";
-    let o = render_scene(&write("quirks.obj", obj.as_bytes()), &["--eye", "0.2,0.2,2", "--target", "0.2,0.2,0"]);
+    let o = render_scene(
+        &write("quirks.obj", obj.as_bytes()),
+        &["--eye", "0.2,0.2,2", "--target", "0.2,0.2,0"],
+    );
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
-    assert!(err.contains("3 triangles (1 emissive)") || err.contains("1 triangles (1 emissive)"), "the lamp's Ke was lost: {err}");
+    assert!(
+        err.contains("3 triangles (1 emissive)") || err.contains("1 triangles (1 emissive)"),
+        "the lamp's Ke was lost: {err}"
+    );
 
     let base = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n";
     for (face, needle) in [
@@ -381,16 +692,41 @@ fn obj_quirks_load_and_bad_texcoord_or_normal_indices_name_the_line() {
 fn overflowing_values_are_errors_with_their_line() {
     for (i, ke) in ["1e39 1 1", "inf 0 0", "1 nan 1"].iter().enumerate() {
         let mtl_name = format!("hot{i}.mtl");
-        write(&mtl_name, format!("newmtl m\nKd 0.5 0.5 0.5\nKe {ke}\n").as_bytes());
-        let obj = write(&format!("hot{i}.obj"), format!("mtllib {mtl_name}\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl m\nf 1 2 3\n").as_bytes());
+        write(
+            &mtl_name,
+            format!("newmtl m\nKd 0.5 0.5 0.5\nKe {ke}\n").as_bytes(),
+        );
+        let obj = write(
+            &format!("hot{i}.obj"),
+            format!("mtllib {mtl_name}\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl m\nf 1 2 3\n").as_bytes(),
+        );
         assert_fails_with(&render_scene(&obj, &[]), &format!("{mtl_name}:3: Ke value"));
     }
     let tri = write("plain.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-    assert_fails_with(&render_scene(&tri, &["--sky", "3e38,3e38,3e38"]), "--sky must be between 0 and");
-    let bare = write("bare_camera.obj", b"# camera:\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-    assert_fails_with(&render_scene(&bare, &["--integrator", "ao"]), "bare_camera.obj:1: the camera line needs");
     assert_fails_with(
-        &render_scene(&tri, &["--integrator", "ao", "--eye", "3e38,273,0", "--target", "-3e38,273,0"]),
+        &render_scene(&tri, &["--sky", "3e38,3e38,3e38"]),
+        "--sky must be between 0 and",
+    );
+    let bare = write(
+        "bare_camera.obj",
+        b"# camera:\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    );
+    assert_fails_with(
+        &render_scene(&bare, &["--integrator", "ao"]),
+        "bare_camera.obj:1: the camera line needs",
+    );
+    assert_fails_with(
+        &render_scene(
+            &tri,
+            &[
+                "--integrator",
+                "ao",
+                "--eye",
+                "3e38,273,0",
+                "--target",
+                "-3e38,273,0",
+            ],
+        ),
         "not finite",
     );
 }
@@ -404,15 +740,25 @@ fn unknown_materials_warn_and_small_mistakes_are_errors() {
     let o = render_scene(&obj, &["--eye", "0.2,0.2,2", "--target", "0.2,0.2,0"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
-    assert!(err.contains("unknown_mtl.obj:7: usemtl 'nosuch' names no material"), "{err}");
+    assert!(
+        err.contains("unknown_mtl.obj:7: usemtl 'nosuch' names no material"),
+        "{err}"
+    );
     assert!(!err.contains("'lamp' names no"), "{err}");
     for name in ["rocks-0.5", "rocks-1e-300"] {
-        assert_fails_with(&runner(&["render", "--backend", "cpu", "--scene", name], &[]), "bad triangle count");
+        assert_fails_with(
+            &runner(&["render", "--backend", "cpu", "--scene", name], &[]),
+            "bad triangle count",
+        );
     }
     assert_fails_with(&runner(&["view", "--exposure", "NaN"], &[]), "--exposure");
     let o = runner(&[], &[]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).starts_with("error:"), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).starts_with("error:"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
 }
 
 /// Degeneracy is scale-free: a ground of edge 2e10 and a triangle of area ~1e-30 are
@@ -423,8 +769,14 @@ fn huge_and_tiny_triangles_are_kept_and_only_flat_ones_dropped() {
     let obj = "v -1e10 0 -1e10\nv 1e10 0 -1e10\nv 0 0 1e10\nf 1 3 2\n\
                v 0 1 0\nv 1e-15 1 0\nv 0 1.000001 1e-15\nf 4 5 6\n\
                v 0 2 0\nv 1 2 0\nv 2 2 0\nf 7 8 9\n";
-    let o = render_scene(&write("scales.obj", obj.as_bytes()), &["--integrator", "ao", "--eye", "0,5,5", "--target", "0,0,0"]);
+    let o = render_scene(
+        &write("scales.obj", obj.as_bytes()),
+        &["--integrator", "ao", "--eye", "0,5,5", "--target", "0,0,0"],
+    );
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
-    assert!(err.contains("dropped 1 degenerate triangle(s)") && err.contains("2 triangles"), "{err}");
+    assert!(
+        err.contains("dropped 1 degenerate triangle(s)") && err.contains("2 triangles"),
+        "{err}"
+    );
 }

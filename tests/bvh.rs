@@ -23,7 +23,8 @@ fn uniform_dir(rng: &mut Rng) -> Vec3 {
 fn make_ray(i: u32, tris: &[Triangle], lo: Vec3, hi: Vec3, rng: &mut Rng) -> Ray {
     // Give flat scenes a probe volume with thickness.
     let size = (hi - lo).max(Vec3::splat(0.5 * (hi - lo).length()));
-    let inside = lo - 0.1 * size + 1.2 * size * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+    let inside =
+        lo - 0.1 * size + 1.2 * size * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
     let tri = tris[(rng.next_u32() % tris.len() as u32) as usize];
     let (p0, p1, p2) = tri.vertices();
     match i % 5 {
@@ -60,7 +61,11 @@ fn make_ray(i: u32, tris: &[Triangle], lo: Vec3, hi: Vec3, rng: &mut Rng) -> Ray
 /// Compare a traversal's hit (prim in leaf order, mapped back through `order`) with brute
 /// force over the original triangles.
 fn check(name: &str, tris: &[Triangle], ray: &Ray, want: &Hit, got: &Hit, order: &[u32]) {
-    assert_eq!(want.is_hit(), got.is_hit(), "{name}: hit/miss differs for {ray:?}: {want:?} vs {got:?}");
+    assert_eq!(
+        want.is_hit(),
+        got.is_hit(),
+        "{name}: hit/miss differs for {ray:?}: {want:?} vs {got:?}"
+    );
     if !want.is_hit() {
         return;
     }
@@ -73,8 +78,16 @@ fn check(name: &str, tris: &[Triangle], ray: &Ray, want: &Hit, got: &Hit, order:
     let got_prim = order[got.prim as usize];
     if got_prim != want.prim {
         // A tie: the ray passes through an edge or vertex shared by both triangles.
-        let alt = brute_force_closest_hit(&tris[got_prim as usize..=got_prim as usize], ray, f32::INFINITY);
-        assert!(alt.is_hit() && alt.t == want.t, "{name}: triangle {got_prim} vs {} for {ray:?}", want.prim);
+        let alt = brute_force_closest_hit(
+            &tris[got_prim as usize..=got_prim as usize],
+            ray,
+            f32::INFINITY,
+        );
+        assert!(
+            alt.is_hit() && alt.t == want.t,
+            "{name}: triangle {got_prim} vs {} for {ray:?}",
+            want.prim
+        );
     }
 }
 
@@ -94,13 +107,39 @@ fn agree_with_brute_force(tris: &[Triangle], rays: u32, seed: u32) {
         let ray = make_ray(i, tris, lo, hi, &mut rng);
         let want = brute_force_closest_hit(tris, &ray, f32::INFINITY);
         hits += want.is_hit() as u32;
-        check("bvh2", tris, &ray, &want, &bvh2_traverse(&t2, &b2.nodes, &ray, f32::INFINITY, false), &b2.order);
-        check("cwbvh", tris, &ray, &want, &cwbvh_traverse(&tc, &cw.nodes, &ray, f32::INFINITY, false), &cw.order);
+        check(
+            "bvh2",
+            tris,
+            &ray,
+            &want,
+            &bvh2_traverse(&t2, &b2.nodes, &ray, f32::INFINITY, false),
+            &b2.order,
+        );
+        check(
+            "cwbvh",
+            tris,
+            &ray,
+            &want,
+            &cwbvh_traverse(&tc, &cw.nodes, &ray, f32::INFINITY, false),
+            &cw.order,
+        );
         // Any-hit with a limit around the closest hit: blocked iff something is nearer.
-        let limit = if want.is_hit() { want.t * (0.5 + rng.next_f32()) } else { 1e30 };
+        let limit = if want.is_hit() {
+            want.t * (0.5 + rng.next_f32())
+        } else {
+            1e30
+        };
         let blocked = brute_force_any_hit(tris, &ray, limit);
-        assert_eq!(bvh2_traverse(&t2, &b2.nodes, &ray, limit, true).is_hit(), blocked, "bvh2 any-hit {ray:?} {limit}");
-        assert_eq!(cwbvh_traverse(&tc, &cw.nodes, &ray, limit, true).is_hit(), blocked, "cwbvh any-hit {ray:?} {limit}");
+        assert_eq!(
+            bvh2_traverse(&t2, &b2.nodes, &ray, limit, true).is_hit(),
+            blocked,
+            "bvh2 any-hit {ray:?} {limit}"
+        );
+        assert_eq!(
+            cwbvh_traverse(&tc, &cw.nodes, &ray, limit, true).is_hit(),
+            blocked,
+            "cwbvh any-hit {ray:?} {limit}"
+        );
     }
     // The probe must actually exercise hits, not only misses.
     assert!(hits > rays / 4, "only {hits} of {rays} rays hit");
@@ -115,7 +154,14 @@ fn cornell_box() {
 #[test]
 fn spheres_in_a_box() {
     let mut tris = closed_box(Vec3::splat(-4.0), Vec3::splat(4.0), 0);
-    for (i, c) in [Vec3::ZERO, Vec3::new(2.0, 1.0, -1.5), Vec3::new(-2.5, -2.0, 2.0)].iter().enumerate() {
+    for (i, c) in [
+        Vec3::ZERO,
+        Vec3::new(2.0, 1.0, -1.5),
+        Vec3::new(-2.5, -2.0, 2.0),
+    ]
+    .iter()
+    .enumerate()
+    {
         tris.extend(icosphere(*c, 1.0 + 0.3 * i as f32, 3, 0));
     }
     agree_with_brute_force(&tris, 25_000, 2);
@@ -155,18 +201,32 @@ fn depths_of_built_bvhs_are_measured() {
 
 #[test]
 fn fuzzer_found_deep_bvh_is_refused_not_mis_traversed() {
-    let data = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/fuzz/regressions/deep_bvh_coincident_triangles")).unwrap();
+    let data = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../tests/fuzz/regressions/deep_bvh_coincident_triangles"
+    ))
+    .unwrap();
     // The default build (CWBVH) renders it; its binary BVH is deeper than BVH2's stack, so
     // a `traversal-bvh2` build refuses it (check_depth) instead of dropping subtrees.
-    let image = runner::setup::load_and_render_bytes(&data).expect("renders with the default traversal");
+    let image =
+        runner::setup::load_and_render_bytes(&data).expect("renders with the default traversal");
     assert!(image.pixels.iter().all(|p| p.is_finite()));
-    let obj = String::from_utf8_lossy(&data[..data.iter().position(|&b| b == 0xff).unwrap_or(data.len())]).into_owned();
+    let obj = String::from_utf8_lossy(
+        &data[..data.iter().position(|&b| b == 0xff).unwrap_or(data.len())],
+    )
+    .into_owned();
     let scene = runner::scene::parse_obj_text("deep", &obj, None).unwrap();
     let d2 = runner::accel::bvh2_depth(&build_bvh2(&scene.triangles).nodes);
     let dc = runner::accel::cwbvh_depth(&build_cwbvh(&scene.triangles).nodes);
-    eprintln!("{} triangles: BVH2 depth {d2}, CWBVH depth {dc}", scene.triangles.len());
+    eprintln!(
+        "{} triangles: BVH2 depth {d2}, CWBVH depth {dc}",
+        scene.triangles.len()
+    );
     assert!(dc <= kernels::bvh::CWBVH_STACK, "cwbvh depth {dc}");
-    assert!(d2 > kernels::bvh::BVH2_STACK, "this input is the deep-BVH2 case (depth {d2})");
+    assert!(
+        d2 > kernels::bvh::BVH2_STACK,
+        "this input is the deep-BVH2 case (depth {d2})"
+    );
 }
 
 #[test]
@@ -202,8 +262,16 @@ fn cwbvh_children_are_popped_front_to_back() {
         let children: Vec<(u32, Vec3)> = (0..8)
             .filter(|&i| byte(node.child_meta, i) & 0x18 == 0x18)
             .map(|i| {
-                let lo = Vec3::new(byte(node.child_min_x, i) as f32, byte(node.child_min_y, i) as f32, byte(node.child_min_z, i) as f32);
-                let hi = Vec3::new(byte(node.child_max_x, i) as f32, byte(node.child_max_y, i) as f32, byte(node.child_max_z, i) as f32);
+                let lo = Vec3::new(
+                    byte(node.child_min_x, i) as f32,
+                    byte(node.child_min_y, i) as f32,
+                    byte(node.child_min_z, i) as f32,
+                );
+                let hi = Vec3::new(
+                    byte(node.child_max_x, i) as f32,
+                    byte(node.child_max_y, i) as f32,
+                    byte(node.child_max_z, i) as f32,
+                );
                 (byte(node.child_meta, i) & 7, (lo + hi) * 0.5 * scale)
             })
             .collect();
@@ -217,14 +285,27 @@ fn cwbvh_children_are_popped_front_to_back() {
                 if oct & 1 != 0 { -1.0 } else { 1.0 },
             );
             let oct_inv = kernels::bvh::cwbvh_octant_inv(d);
-            let first = children.iter().max_by_key(|(slot, _)| slot ^ oct_inv).unwrap();
-            let nearest = children.iter().map(|(_, c)| c.dot(d)).fold(f32::INFINITY, f32::min);
+            let first = children
+                .iter()
+                .max_by_key(|(slot, _)| slot ^ oct_inv)
+                .unwrap();
+            let nearest = children
+                .iter()
+                .map(|(_, c)| c.dot(d))
+                .fold(f32::INFINITY, f32::min);
             nearest_first += (first.1.dot(d) <= nearest) as u32;
             cases += 1;
         }
     }
     let share = nearest_first as f64 / cases as f64;
-    eprintln!("nearest child popped first in {:.1}% of {cases} (node, direction) cases", 100.0 * share);
+    eprintln!(
+        "nearest child popped first in {:.1}% of {cases} (node, direction) cases",
+        100.0 * share
+    );
     assert!(cases > 1000, "too few interior nodes: {cases}");
-    assert!(share > 0.5, "children are not visited front to back: {:.1}%", 100.0 * share);
+    assert!(
+        share > 0.5,
+        "children are not visited front to back: {:.1}%",
+        100.0 * share
+    );
 }

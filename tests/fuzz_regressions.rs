@@ -31,7 +31,20 @@ fn mutated_scenes_do_not_panic() {
     let mut seed = runner::scene::CORNELL_BOX_OBJ.as_bytes().to_vec();
     seed.push(0xff);
     seed.extend_from_slice(b"newmtl white\nKd 0.7 0.7 0.7\nnewmtl light\nKe 10 10 10\n");
-    let tokens: [&[u8]; 12] = [b"nan", b"-1", b"0", b"1e38", b"f ", b"v ", b"\n", b"/", b"99999", b"usemtl light\n", b"inf", b" "];
+    let tokens: [&[u8]; 12] = [
+        b"nan",
+        b"-1",
+        b"0",
+        b"1e38",
+        b"f ",
+        b"v ",
+        b"\n",
+        b"/",
+        b"99999",
+        b"usemtl light\n",
+        b"inf",
+        b" ",
+    ];
     let mut rng = Rng::from_seed(77);
     for round in 0..300 {
         let mut data = seed.clone();
@@ -54,6 +67,10 @@ fn mutated_scenes_do_not_panic() {
                 }
             }
         }
-        assert!(survives(&data), "round {round}: input panics:\n{}", String::from_utf8_lossy(&data));
+        assert!(
+            survives(&data),
+            "round {round}: input panics:\n{}",
+            String::from_utf8_lossy(&data)
+        );
     }
 }

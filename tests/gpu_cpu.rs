@@ -10,7 +10,16 @@ use runner::scene::Scene;
 use runner::setup::{frame_params, load_scene};
 
 fn scene_args(width: u32, height: u32) -> SceneArgs {
-    SceneArgs { scene: None, width, height, eye: None, target: None, up: None, up_axis: UpAxis::Y, fov: None }
+    SceneArgs {
+        scene: None,
+        width,
+        height,
+        eye: None,
+        target: None,
+        up: None,
+        up_axis: UpAxis::Y,
+        fov: None,
+    }
 }
 
 fn kernel_args(integrator: Integrator, spp: u32) -> KernelArgs {
@@ -36,9 +45,10 @@ fn kernel_args(integrator: Integrator, spp: u32) -> KernelArgs {
 }
 
 fn gpu_backend(scene: &Scene, w: u32, h: u32) -> GpuBackend {
-    let adapter = adapters().into_iter().next().expect(
-        "no Vulkan adapter: install mesa-vulkan-drivers (lavapipe) to run the GPU tests",
-    );
+    let adapter = adapters()
+        .into_iter()
+        .next()
+        .expect("no Vulkan adapter: install mesa-vulkan-drivers (lavapipe) to run the GPU tests");
     let ctx = GpuContext::new(&adapter).expect("GPU device");
     GpuBackend::new(ctx, scene, w, h).expect("GPU backend")
 }
@@ -75,7 +85,11 @@ fn ao_gpu_matches_cpu_pixel_by_pixel() {
         }
     }
     assert!(differ * 100 <= n, "{differ} of {n} pixels differ");
-    assert!(g.mean().x > 0.2, "GPU image is (nearly) black: mean {}", g.mean());
+    assert!(
+        g.mean().x > 0.2,
+        "GPU image is (nearly) black: mean {}",
+        g.mean()
+    );
 }
 
 #[test]
@@ -96,7 +110,13 @@ fn split_into_passes_does_not_change_the_image() {
 #[test]
 fn path_integrators_gpu_match_cpu() {
     // ReSTIR: 3 frames, so every pass (temporal and spatial with history) takes part.
-    for integrator in [Integrator::Pt, Integrator::Nee, Integrator::Mis, Integrator::Ris, Integrator::Restir] {
+    for integrator in [
+        Integrator::Pt,
+        Integrator::Nee,
+        Integrator::Mis,
+        Integrator::Ris,
+        Integrator::Restir,
+    ] {
         let (w, h, spp) = (48, 48, 3);
         let (g, c) = render_both(integrator, w, h, spp);
         let n = g.pixels.len();
@@ -106,11 +126,18 @@ fn path_integrators_gpu_match_cpu() {
             .zip(&c.pixels)
             .filter(|(a, b)| (**a - **b).abs().max_element() <= 1e-4 * a.max_element().max(1.0))
             .count();
-        eprintln!("{integrator:?}: {same} of {n} pixels identical; means gpu {} cpu {}", g.mean(), c.mean());
+        eprintln!(
+            "{integrator:?}: {same} of {n} pixels identical; means gpu {} cpu {}",
+            g.mean(),
+            c.mean()
+        );
         assert!(g.pixels.iter().all(|p| p.is_finite()));
         // Same kernels, same random streams: a path only diverges where float rounding
         // differs on a knife edge, and then the pixel is a different sample of the same
         // distribution. Nearly every pixel must be identical.
-        assert!(same * 100 >= n * 97, "{integrator:?}: only {same} of {n} pixels agree");
+        assert!(
+            same * 100 >= n * 97,
+            "{integrator:?}: only {same} of {n} pixels agree"
+        );
     }
 }

@@ -24,7 +24,12 @@ fn closest(tris: &[Triangle], ray: &Ray, watertight: bool) -> Option<f32> {
 
 /// Rays from random interior points: towards random directions, towards points on shared
 /// edges, and exactly at shared vertices. Returns (rays, misses).
-fn shoot(tris: &[Triangle], inside: impl Fn(&mut Rng) -> Vec3, rays: u32, watertight: bool) -> (u32, u32) {
+fn shoot(
+    tris: &[Triangle],
+    inside: impl Fn(&mut Rng) -> Vec3,
+    rays: u32,
+    watertight: bool,
+) -> (u32, u32) {
     let mut rng = Rng::from_seed(12345);
     let mut misses = 0;
     for i in 0..rays {
@@ -69,7 +74,10 @@ fn watertight_test_never_misses_from_inside_a_closed_sphere() {
     assert_eq!(tris.len(), 320);
     let inside = |rng: &mut Rng| Vec3::new(0.3, -0.2, 0.1) + common_dir(rng) * 1.5 * rng.next_f32();
     let (rays, misses) = shoot(&tris, inside, 1_000_000, true);
-    assert_eq!(misses, 0, "{misses} of {rays} rays escaped the closed sphere");
+    assert_eq!(
+        misses, 0,
+        "{misses} of {rays} rays escaped the closed sphere"
+    );
 }
 
 #[test]

@@ -3,7 +3,9 @@ mod common;
 
 use glam::Vec3;
 use kernels::camera::look_at;
-use kernels::types::{FrameParams, Material, Triangle, LIGHT_SAMPLING_POWER, LIGHT_SAMPLING_UNIFORM};
+use kernels::types::{
+    FrameParams, Material, Triangle, LIGHT_SAMPLING_POWER, LIGHT_SAMPLING_UNIFORM,
+};
 use runner::cli::Integrator;
 use runner::cpu::CpuBackend;
 use runner::output::Image;
@@ -45,7 +47,11 @@ fn furnace(albedo: f32, le: f32) -> Scene {
             Triangle::new(a, c, b, 0) // flip: the front (emitting) side faces inwards
         })
         .collect();
-    let mut scene = Scene::new(tris, vec![Material::new(Vec3::splat(albedo), Vec3::splat(le))]).unwrap();
+    let mut scene = Scene::new(
+        tris,
+        vec![Material::new(Vec3::splat(albedo), Vec3::splat(le))],
+    )
+    .unwrap();
     scene.camera = Some(runner::scene::CameraHint {
         eye: Vec3::new(0.3, -0.2, 0.1),
         target: Vec3::new(1.0, 0.5, -2.0),
@@ -78,8 +84,16 @@ fn furnace_gives_le_over_one_minus_albedo() {
 fn seeded_means(scene: &Scene, integrator: Integrator, seeds: u32, spp: u32) -> (f64, f64) {
     let means: Vec<f64> = (0..seeds)
         .map(|s| {
-            let img = render_cpu(scene, integrator, &params(scene, 24, 24, 100 + s, LIGHT_SAMPLING_POWER), spp);
-            assert!(img.pixels.iter().all(|p| p.is_finite()), "{integrator:?}: non-finite pixel");
+            let img = render_cpu(
+                scene,
+                integrator,
+                &params(scene, 24, 24, 100 + s, LIGHT_SAMPLING_POWER),
+                spp,
+            );
+            assert!(
+                img.pixels.iter().all(|p| p.is_finite()),
+                "{integrator:?}: non-finite pixel"
+            );
             img.mean().dot(Vec3::splat(1.0 / 3.0)) as f64
         })
         .collect();
@@ -94,7 +108,10 @@ fn integrators_agree(scene: &Scene, seeds: u32, spp: u32) {
     for (a, (ma, sa)) in &results {
         for (b, (mb, sb)) in &results {
             let se = (sa * sa + sb * sb).sqrt();
-            assert!((ma - mb).abs() < 4.5 * se, "{a:?} {ma}±{sa} vs {b:?} {mb}±{sb}");
+            assert!(
+                (ma - mb).abs() < 4.5 * se,
+                "{a:?} {ma}±{sa} vs {b:?} {mb}±{sb}"
+            );
         }
         assert!(*ma > 0.0, "{a:?}: black image");
     }
@@ -109,6 +126,9 @@ fn pt_nee_mis_agree_on_the_cornell_box() {
 #[test]
 fn pt_nee_mis_agree_on_the_many_lights_scene() {
     let scene = runner::generate::many_lights().into_scene().unwrap();
-    assert!(scene.lights.len() >= 200, "128 quads = 256 emissive triangles");
+    assert!(
+        scene.lights.len() >= 200,
+        "128 quads = 256 emissive triangles"
+    );
     integrators_agree(&scene, 8, 16);
 }

@@ -19,12 +19,17 @@ use runner::scene::Scene;
 
 fn weights(n: usize, seed: u32) -> Vec<f32> {
     let mut rng = Rng::from_seed(seed);
-    (0..n).map(|_| 0.05 + rng.next_f32().powi(2) * 3.0).collect()
+    (0..n)
+        .map(|_| 0.05 + rng.next_f32().powi(2) * 3.0)
+        .collect()
 }
 
 fn chi2_against_weights(counts: &[u64], w: &[f32], trials: u64) {
     let total: f64 = w.iter().map(|&x| x as f64).sum();
-    let expected: Vec<f64> = w.iter().map(|&x| trials as f64 * x as f64 / total).collect();
+    let expected: Vec<f64> = w
+        .iter()
+        .map(|&x| trials as f64 * x as f64 / total)
+        .collect();
     let chi2 = chi_square(counts, &expected);
     let crit = chi_square_critical(w.len() - 1);
     assert!(chi2 < crit, "χ² = {chi2:.1} ≥ {crit:.1}");
@@ -100,7 +105,14 @@ fn params(scene: &Scene, w: u32, h: u32, seed: u32, max_depth: u32, flags: u32) 
 }
 
 /// Image means (average of r, g, b) of `runs` independent renders: mean and standard error.
-fn image_means(scene: &Scene, integrator: Integrator, runs: u32, spp: u32, max_depth: u32, flags: u32) -> (f64, f64) {
+fn image_means(
+    scene: &Scene,
+    integrator: Integrator,
+    runs: u32,
+    spp: u32,
+    max_depth: u32,
+    flags: u32,
+) -> (f64, f64) {
     let v: Vec<f64> = (0..runs)
         .map(|s| {
             let p = params(scene, 32, 24, 1000 + s, max_depth, flags);
@@ -116,7 +128,10 @@ fn image_means(scene: &Scene, integrator: Integrator, runs: u32, spp: u32, max_d
 fn scenes() -> Vec<(&'static str, Scene)> {
     vec![
         ("cornell-box", runner::scene::cornell_box().unwrap()),
-        ("many-lights", runner::generate::many_lights().into_scene().unwrap()),
+        (
+            "many-lights",
+            runner::generate::many_lights().into_scene().unwrap(),
+        ),
     ]
 }
 
@@ -126,7 +141,10 @@ fn ris_direct_light_is_unbiased() {
         let (nee, se_nee) = image_means(&scene, Integrator::Nee, 8, 16, 2, 0);
         let (ris, se_ris) = image_means(&scene, Integrator::Ris, 8, 16, 2, 0);
         let se = (se_nee * se_nee + se_ris * se_ris).sqrt();
-        assert!((nee - ris).abs() < 4.5 * se, "{name}: NEE {nee}±{se_nee} vs RIS {ris}±{se_ris}");
+        assert!(
+            (nee - ris).abs() < 4.5 * se,
+            "{name}: NEE {nee}±{se_nee} vs RIS {ris}±{se_ris}"
+        );
     }
 }
 
@@ -135,7 +153,14 @@ fn unbiased_restir_converges_to_nee_and_biased_error_is_reported() {
     let full = RESTIR_TEMPORAL | RESTIR_VISIBILITY_REUSE;
     for (name, scene) in scenes() {
         let (nee, se_nee) = image_means(&scene, Integrator::Nee, 12, 64, 2, 0);
-        let (unb, se_unb) = image_means(&scene, Integrator::Restir, 12, 64, 2, full | RESTIR_UNBIASED);
+        let (unb, se_unb) = image_means(
+            &scene,
+            Integrator::Restir,
+            12,
+            64,
+            2,
+            full | RESTIR_UNBIASED,
+        );
         let (bia, se_bia) = image_means(&scene, Integrator::Restir, 12, 64, 2, full);
         let se = (se_nee * se_nee + se_unb * se_unb).sqrt();
         eprintln!(
@@ -143,11 +168,17 @@ fn unbiased_restir_converges_to_nee_and_biased_error_is_reported() {
              (biased error {:+.2}%)",
             100.0 * (bia - nee) / nee
         );
-        assert!((nee - unb).abs() < 4.5 * se, "{name}: unbiased ReSTIR {unb} vs NEE {nee} (se {se})");
+        assert!(
+            (nee - unb).abs() < 4.5 * se,
+            "{name}: unbiased ReSTIR {unb} vs NEE {nee} (se {se})"
+        );
         // The biased mode trades a small bias for less noise; it must stay small (10%, plus
         // what the noise of this measurement allows).
         let se_b = (se_nee * se_nee + se_bia * se_bia).sqrt();
-        assert!((bia - nee).abs() < 0.1 * nee + 4.5 * se_b, "{name}: biased ReSTIR {bia} vs NEE {nee}");
+        assert!(
+            (bia - nee).abs() < 0.1 * nee + 4.5 * se_b,
+            "{name}: biased ReSTIR {bia} vs NEE {nee}"
+        );
     }
 }
 
@@ -165,7 +196,11 @@ fn temporal_reuse_rejects_disoccluded_pixels() {
         0,
     )
     .to_vec();
-    tris.extend(common::closed_box(Vec3::new(-1.5, -1.5, -3.0), Vec3::new(1.5, 1.5, 0.0), 0));
+    tris.extend(common::closed_box(
+        Vec3::new(-1.5, -1.5, -3.0),
+        Vec3::new(1.5, 1.5, 0.0),
+        0,
+    ));
     // A light above, facing down.
     tris.extend(common::quad(
         [
@@ -176,13 +211,25 @@ fn temporal_reuse_rejects_disoccluded_pixels() {
         ],
         1,
     ));
-    let materials = vec![common::grey(0.6), Material::new(Vec3::splat(0.5), Vec3::splat(10.0))];
+    let materials = vec![
+        common::grey(0.6),
+        Material::new(Vec3::splat(0.5), Vec3::splat(10.0)),
+    ];
     // Identify the wall by position (triangles are reordered by the BVH): it lies in z = -10.
     let scene = Scene::new(tris, materials).unwrap();
-    let on_wall = |g: &kernels::types::GBufferTexel| g.prim != INVALID && (g.p[2] + 10.0).abs() < 1e-3;
+    let on_wall =
+        |g: &kernels::types::GBufferTexel| g.prim != INVALID && (g.p[2] + 10.0).abs() < 1e-3;
 
     let (w, h) = (64u32, 48u32);
-    let cam = |x: f32| look_at(Vec3::new(x, 0.0, 12.0), Vec3::new(x, 0.0, -10.0), Vec3::Y, 40.0, w as f32 / h as f32);
+    let cam = |x: f32| {
+        look_at(
+            Vec3::new(x, 0.0, 12.0),
+            Vec3::new(x, 0.0, -10.0),
+            Vec3::Y,
+            40.0,
+            w as f32 / h as f32,
+        )
+    };
     let ks = scene.kernel();
     let frame = |camera, frame: u32| FrameParams {
         camera,
@@ -200,12 +247,19 @@ fn temporal_reuse_rejects_disoccluded_pixels() {
     p1.prev_camera = p0.camera;
     let mut rays = 0;
     let gbuf = |p: &FrameParams, rays: &mut u32| -> Vec<_> {
-        (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| restir::primary_hit(&ks, p, x, y, rays)).collect()
+        (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| restir::primary_hit(&ks, p, x, y, rays))
+            .collect()
     };
     let (g0, g1) = (gbuf(&p0, &mut rays), gbuf(&p1, &mut rays));
-    let res = |p: &FrameParams, g: &[kernels::types::GBufferTexel], rays: &mut u32| -> Vec<Reservoir> {
-        g.iter().enumerate().map(|(i, t)| restir::initial_pass(&ks, p, t, i as u32, rays)).collect()
-    };
+    let res =
+        |p: &FrameParams, g: &[kernels::types::GBufferTexel], rays: &mut u32| -> Vec<Reservoir> {
+            g.iter()
+                .enumerate()
+                .map(|(i, t)| restir::initial_pass(&ks, p, t, i as u32, rays))
+                .collect()
+        };
     let (r0, r1) = (res(&p0, &g0, &mut rays), res(&p1, &g1, &mut rays));
     let (mut merged, mut rejected_disocclusions) = (0, 0);
     for y in 0..h {
@@ -218,7 +272,10 @@ fn temporal_reuse_rejects_disoccluded_pixels() {
                 let before = &g0[(py * w + px) as usize];
                 if !on_wall(before) {
                     // The wall point was hidden behind the box: no history may be taken.
-                    assert!(!took_history, "pixel ({x},{y}) took history across a disocclusion");
+                    assert!(
+                        !took_history,
+                        "pixel ({x},{y}) took history across a disocclusion"
+                    );
                     rejected_disocclusions += 1;
                 } else if took_history {
                     merged += 1;
@@ -226,15 +283,28 @@ fn temporal_reuse_rejects_disoccluded_pixels() {
             }
         }
     }
-    assert!(rejected_disocclusions > 20, "the test must produce disocclusions ({rejected_disocclusions})");
-    assert!(merged > (w * h / 4) as usize, "visible wall pixels should reuse history ({merged})");
+    assert!(
+        rejected_disocclusions > 20,
+        "the test must produce disocclusions ({rejected_disocclusions})"
+    );
+    assert!(
+        merged > (w * h / 4) as usize,
+        "visible wall pixels should reuse history ({merged})"
+    );
 }
 
 /// What a viewer shows: one frame after `frames` frames of history (RIS: one frame), on
 /// many-lights at 512×384, direct light, 32 candidates a frame, against the committed
 /// reference (MIS, 65,536 spp on an H100). Single frames vary up to 2× from seed to seed,
 /// so each figure is a mean over seeds. Returns (relMSE, image mean / reference mean).
-fn single_frame_error(integrator: Integrator, frames: u32, candidates: u32, spatial_passes: u32, flags: u32, seeds: u32) -> (f64, f64) {
+fn single_frame_error(
+    integrator: Integrator,
+    frames: u32,
+    candidates: u32,
+    spatial_passes: u32,
+    flags: u32,
+    seeds: u32,
+) -> (f64, f64) {
     let reference = runner::output::read_image(std::path::Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../tests/references/many_lights_512x384_direct.exr"
@@ -248,9 +318,17 @@ fn single_frame_error(integrator: Integrator, frames: u32, candidates: u32, spat
         p.spatial_passes = spatial_passes;
         p.spatial_radius = runner::setup::default_spatial_radius(512, 384);
         let mut cpu = CpuBackend::new(&scene, p.width, p.height);
-        let (img, _) =
-            runner::render::render_sequence(&mut cpu, integrator, &p, 1, frames, false, |_| Ok(p.camera), |_, _| Ok(()))
-                .unwrap();
+        let (img, _) = runner::render::render_sequence(
+            &mut cpu,
+            integrator,
+            &p,
+            1,
+            frames,
+            false,
+            |_| Ok(p.camera),
+            |_, _| Ok(()),
+        )
+        .unwrap();
         rel += runner::output::compare(&img, &reference).unwrap().rel_mse;
         ratio += (img.mean().element_sum() / reference.mean().element_sum()) as f64;
     }
@@ -274,11 +352,26 @@ fn restir_single_frames_get_better_with_history() {
          (without spatial {first_no_spatial:.4}), after 16 {after_16:.4} (temporal only {temporal_16:.4}, \
          mean x{mean_16:.4}), after 64 {after_64:.4} (mean x{mean_64:.4})"
     );
-    assert!(first < 0.75 * first_no_spatial, "spatial reuse must help the first frame: {first} vs {first_no_spatial}");
-    assert!(after_16 <= 0.75 * ris_1024, "16 frames of history: {after_16} vs RIS 1024 {ris_1024}");
-    assert!(after_16 < temporal_16, "spatial reuse must help after 16 frames: {after_16} vs {temporal_16}");
-    assert!(after_64 <= 1.1 * after_16, "64 frames must be no worse than 16: {after_64} vs {after_16}");
+    assert!(
+        first < 0.75 * first_no_spatial,
+        "spatial reuse must help the first frame: {first} vs {first_no_spatial}"
+    );
+    assert!(
+        after_16 <= 0.75 * ris_1024,
+        "16 frames of history: {after_16} vs RIS 1024 {ris_1024}"
+    );
+    assert!(
+        after_16 < temporal_16,
+        "spatial reuse must help after 16 frames: {after_16} vs {temporal_16}"
+    );
+    assert!(
+        after_64 <= 1.1 * after_16,
+        "64 frames must be no worse than 16: {after_64} vs {after_16}"
+    );
     for m in [mean_16, mean_64] {
-        assert!((m - 1.0).abs() < 0.04, "biased ReSTIR's image mean x{m} of the reference");
+        assert!(
+            (m - 1.0).abs() < 0.04,
+            "biased ReSTIR's image mean x{m} of the reference"
+        );
     }
 }

@@ -77,7 +77,10 @@ fn light_selection_follows_power_and_uniform_pdfs() {
     let mut tris = vec![Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y, 0)];
     for i in 0..50 {
         let strength = 0.1 + 100.0 * rng.next_f32().powi(3);
-        materials.push(Material::new(Vec3::splat(0.5), Vec3::new(strength, 0.5 * strength, 0.2)));
+        materials.push(Material::new(
+            Vec3::splat(0.5),
+            Vec3::new(strength, 0.5 * strength, 0.2),
+        ));
         let s = 0.1 + rng.next_f32();
         let o = Vec3::new(i as f32, 0.0, 0.0);
         tris.push(Triangle::new(o, o + Vec3::X * s, o + Vec3::Y * s, i + 1));
@@ -136,7 +139,10 @@ fn light_selection_is_exact_for_many_lights() {
     let two32 = 2f64.powi(32);
     let two24 = 2f64.powi(24);
     // Slot s gets the u with ⌊u·n / 2³²⌋ = s; the coin takes the values j / 2²⁴.
-    let slot_p = |s: usize| ((((s + 1) as f64) * two32 / n as f64).ceil() - ((s as f64) * two32 / n as f64).ceil()) / two32;
+    let slot_p = |s: usize| {
+        ((((s + 1) as f64) * two32 / n as f64).ceil() - ((s as f64) * two32 / n as f64).ceil())
+            / two32
+    };
     let coin_below = |t: f32| ((t as f64 * two24).ceil().clamp(0.0, two24)) / two24;
     let mut picked = vec![0f64; n];
     let mut aliased_by = vec![0u32; n];
@@ -154,12 +160,24 @@ fn light_selection_is_exact_for_many_lights() {
         let tolerance = 1e-4 * pdf + (1 + aliased_by[i]) as f64 / (two24 * n as f64);
         let err = (picked[i] - pdf).abs();
         worst = worst.max(err / tolerance);
-        assert!(err <= tolerance, "light {i}: picked with {} but pdf {pdf}", picked[i]);
+        assert!(
+            err <= tolerance,
+            "light {i}: picked with {} but pdf {pdf}",
+            picked[i]
+        );
     }
     eprintln!("worst error / tolerance: {worst:.3}");
     // And the uniform mode: every slot equally likely to within one u32 value.
     for s in [0, 1, n / 3, n - 1] {
         assert!((slot_p(s) * n as f64 - 1.0).abs() < 2.0 * n as f64 / two32);
-        assert_eq!(select_light(&lights, LIGHT_SAMPLING_UNIFORM, ((s as f64 + 0.5) * two32 / n as f64) as u32, 0.0), s as u32);
+        assert_eq!(
+            select_light(
+                &lights,
+                LIGHT_SAMPLING_UNIFORM,
+                ((s as f64 + 0.5) * two32 / n as f64) as u32,
+                0.0
+            ),
+            s as u32
+        );
     }
 }

@@ -17,7 +17,15 @@ impl Drop for Xvfb {
 /// so concurrent test runs never collide and nothing races the server's start.
 fn start_xvfb(extra: &[&str]) -> (Xvfb, String) {
     let mut child = Command::new("Xvfb")
-        .args(["-displayfd", "1", "-screen", "0", "320x240x24", "-nolisten", "tcp"])
+        .args([
+            "-displayfd",
+            "1",
+            "-screen",
+            "0",
+            "320x240x24",
+            "-nolisten",
+            "tcp",
+        ])
         .args(extra)
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
@@ -26,14 +34,19 @@ fn start_xvfb(extra: &[&str]) -> (Xvfb, String) {
     let mut line = String::new();
     let stdout = child.stdout.take().unwrap();
     std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut line).unwrap();
-    let n: u32 = line.trim().parse().unwrap_or_else(|_| panic!("Xvfb did not report a display: '{line}'"));
+    let n: u32 = line
+        .trim()
+        .parse()
+        .unwrap_or_else(|_| panic!("Xvfb did not report a display: '{line}'"));
     (Xvfb(child), format!(":{n}"))
 }
 
 /// The runner binary with `args`, on X display `display` (none: no display at all).
 fn runner_command(args: &[&str], display: Option<&str>) -> Command {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_runner"));
-    cmd.args(args).env("XDG_RUNTIME_DIR", std::env::temp_dir()).env_remove("WAYLAND_DISPLAY");
+    cmd.args(args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .env_remove("WAYLAND_DISPLAY");
     match display {
         Some(d) => cmd.env("DISPLAY", d),
         None => cmd.env_remove("DISPLAY"),
@@ -59,13 +72,38 @@ fn screenshot_matches_render(present: &str) {
     let _ = std::fs::remove_file(&shot);
     let (_x, display) = start_xvfb(&[]);
     let display = display.as_str();
-    let common = ["--integrator", "nee", "--width", "64", "--height", "48", "--seed", "5"];
-    let mut view = vec!["view", "--present", present, "--exit-after", "6", "--screenshot", shot.to_str().unwrap()];
+    let common = [
+        "--integrator",
+        "nee",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--seed",
+        "5",
+    ];
+    let mut view = vec![
+        "view",
+        "--present",
+        present,
+        "--exit-after",
+        "6",
+        "--screenshot",
+        shot.to_str().unwrap(),
+    ];
     view.extend(common);
     let o = runner(&view, Some(display));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "viewer failed:\n{err}");
-    let mut render = vec!["render", "--backend", "gpu", "--spp", "6", "--out", reference.to_str().unwrap()];
+    let mut render = vec![
+        "render",
+        "--backend",
+        "gpu",
+        "--spp",
+        "6",
+        "--out",
+        reference.to_str().unwrap(),
+    ];
     render.extend(common);
     let o = runner(&render, None);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -74,23 +112,38 @@ fn screenshot_matches_render(present: &str) {
     let b = runner::output::read_image(&reference).unwrap();
     assert!(a.mean().max_element() > 0.01, "blank screenshot");
     let e = runner::output::compare(&a, &b).unwrap();
-    assert!(e.identical > 0.97, "viewer ({present}) and render differ: {e:?}");
+    assert!(
+        e.identical > 0.97,
+        "viewer ({present}) and render differ: {e:?}"
+    );
 }
 
 /// An XWD image (what `Xvfb -fbdir` keeps its screen in) as 8-bit RGB rows.
 fn read_xwd(path: &Path) -> Option<(usize, usize, Vec<[u8; 3]>)> {
     let bytes = std::fs::read(path).ok()?;
-    let field = |i: usize| -> Option<usize> { Some(u32::from_be_bytes(bytes.get(4 * i..4 * i + 4)?.try_into().ok()?) as usize) };
+    let field = |i: usize| -> Option<usize> {
+        Some(u32::from_be_bytes(bytes.get(4 * i..4 * i + 4)?.try_into().ok()?) as usize)
+    };
     let (header, width, height, lsb_first) = (field(0)?, field(4)?, field(5)?, field(7)? == 0);
     let (bits, row, ncolors) = (field(11)?, field(12)?, field(19)?);
     let masks = [field(14)? as u32, field(15)? as u32, field(16)? as u32];
-    assert_eq!(bits, 32, "the test starts Xvfb with 24-bit colour (32 bits per pixel)");
+    assert_eq!(
+        bits, 32,
+        "the test starts Xvfb with 24-bit colour (32 bits per pixel)"
+    );
     let start = header + 12 * ncolors;
     let mut pixels = Vec::with_capacity(width * height);
     for y in 0..height {
         for x in 0..width {
-            let b: [u8; 4] = bytes.get(start + y * row + 4 * x..start + y * row + 4 * x + 4)?.try_into().ok()?;
-            let v = if lsb_first { u32::from_le_bytes(b) } else { u32::from_be_bytes(b) };
+            let b: [u8; 4] = bytes
+                .get(start + y * row + 4 * x..start + y * row + 4 * x + 4)?
+                .try_into()
+                .ok()?;
+            let v = if lsb_first {
+                u32::from_le_bytes(b)
+            } else {
+                u32::from_be_bytes(b)
+            };
             pixels.push(masks.map(|m| ((v & m) >> m.trailing_zeros()) as u8));
         }
     }
@@ -105,11 +158,33 @@ fn read_xwd(path: &Path) -> Option<(usize, usize, Vec<[u8; 3]>)> {
 fn window_shows_the_rendered_image() {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
     let common = [
-        "--integrator", "pt", "--max-depth", "1", "--sky", "0.9,0.45,0.1", "--eye", "278,273,-2600",
-        "--target", "278,273,280", "--width", "64", "--height", "48", "--seed", "3",
+        "--integrator",
+        "pt",
+        "--max-depth",
+        "1",
+        "--sky",
+        "0.9,0.45,0.1",
+        "--eye",
+        "278,273,-2600",
+        "--target",
+        "278,273,280",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--seed",
+        "3",
     ];
     let reference = dir.join("window_reference.png");
-    let mut render = vec!["render", "--backend", "gpu", "--spp", "64", "--out", reference.to_str().unwrap()];
+    let mut render = vec![
+        "render",
+        "--backend",
+        "gpu",
+        "--spp",
+        "64",
+        "--out",
+        reference.to_str().unwrap(),
+    ];
     render.extend(common);
     let o = runner(&render, None);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -134,8 +209,13 @@ fn window_shows_the_rendered_image() {
         let mut best = 0.0;
         while best < 0.97 && std::time::Instant::now() < deadline {
             std::thread::sleep(std::time::Duration::from_millis(200));
-            assert!(viewer.try_wait().unwrap().is_none(), "the viewer ({present}) exited early");
-            let Some((w, _, screen)) = read_xwd(&fbdir.join("Xvfb_screen0")) else { continue };
+            assert!(
+                viewer.try_wait().unwrap().is_none(),
+                "the viewer ({present}) exited early"
+            );
+            let Some((w, _, screen)) = read_xwd(&fbdir.join("Xvfb_screen0")) else {
+                continue;
+            };
             // No window manager: the window sits at the screen's top-left corner.
             let close = reference
                 .enumerate_pixels()
@@ -148,7 +228,11 @@ fn window_shows_the_rendered_image() {
         }
         let _ = viewer.kill();
         let _ = viewer.wait();
-        assert!(best >= 0.97, "the window ({present}) shows a different image: {:.1}% of pixels match", 100.0 * best);
+        assert!(
+            best >= 0.97,
+            "the window ({present}) shows a different image: {:.1}% of pixels match",
+            100.0 * best
+        );
     }
 }
 
@@ -156,12 +240,29 @@ fn window_shows_the_rendered_image() {
 fn viewer_without_a_display_fails_cleanly() {
     // No display at all, and a display name that nothing answers.
     for display in [None, Some(":987654")] {
-        let o = runner(&["view", "--width", "32", "--height", "32", "--exit-after", "1"], display);
+        let o = runner(
+            &[
+                "view",
+                "--width",
+                "32",
+                "--height",
+                "32",
+                "--exit-after",
+                "1",
+            ],
+            display,
+        );
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(1), "{display:?}: {err}");
-        assert!(err.starts_with("error:") && err.contains("display") && err.lines().count() == 1, "{display:?}: {err}");
+        assert!(
+            err.starts_with("error:") && err.contains("display") && err.lines().count() == 1,
+            "{display:?}: {err}"
+        );
         // A person is told what happened, not where in a dependency's source it was noticed.
-        assert!(!err.contains(".rs:") && !err.contains("/src/"), "{display:?}: {err}");
+        assert!(
+            !err.contains(".rs:") && !err.contains("/src/"),
+            "{display:?}: {err}"
+        );
         assert!(!err.contains("panicked"), "{err}");
     }
 }
@@ -171,16 +272,35 @@ fn viewer_refuses_what_it_cannot_do_before_opening_a_window() {
     let shot = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("never.png");
     let cases: &[(&[&str], &str)] = &[
         (&["view", "--backend", "cpu"], "--backend cpu"),
-        (&["view", "--screenshot", "/nonexistent-dir/x.png", "--exit-after", "1"], "does not exist"),
-        (&["view", "--screenshot", shot.to_str().unwrap()], "--exit-after"),
+        (
+            &[
+                "view",
+                "--screenshot",
+                "/nonexistent-dir/x.png",
+                "--exit-after",
+                "1",
+            ],
+            "does not exist",
+        ),
+        (
+            &["view", "--screenshot", shot.to_str().unwrap()],
+            "--exit-after",
+        ),
         (&["view", "--present", "sideways"], "sideways"),
     ];
     for (args, needle) in cases {
         // With a display name that cannot be opened: the checks come first.
         let o = runner(args, Some(":987654"));
         let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(if needle == &"sideways" { 2 } else { 1 }), "{args:?}: {err}");
-        assert!(err.contains(needle), "{args:?}: stderr lacks '{needle}':\n{err}");
+        assert_eq!(
+            o.status.code(),
+            Some(if needle == &"sideways" { 2 } else { 1 }),
+            "{args:?}: {err}"
+        );
+        assert!(
+            err.contains(needle),
+            "{args:?}: stderr lacks '{needle}':\n{err}"
+        );
         assert!(!err.contains("panicked"), "{args:?}: {err}");
     }
 }
@@ -193,7 +313,9 @@ fn viewer_refuses_what_it_cannot_do_before_opening_a_window() {
 fn keys_switch_the_integrator_save_and_quit() {
     use std::io::BufRead;
     use x11rb::connection::Connection;
-    use x11rb::protocol::xproto::{ConnectionExt as _, InputFocus, KEY_PRESS_EVENT, KEY_RELEASE_EVENT, MOTION_NOTIFY_EVENT};
+    use x11rb::protocol::xproto::{
+        ConnectionExt as _, InputFocus, KEY_PRESS_EVENT, KEY_RELEASE_EVENT, MOTION_NOTIFY_EVENT,
+    };
     use x11rb::protocol::xtest::ConnectionExt as _;
 
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("keys");
@@ -212,7 +334,10 @@ fn keys_switch_the_integrator_save_and_quit() {
     let (lines_tx, lines) = std::sync::mpsc::channel::<String>();
     let stderr = viewer.stderr.take().unwrap();
     std::thread::spawn(move || {
-        for line in std::io::BufReader::new(stderr).lines().map_while(|l| l.ok()) {
+        for line in std::io::BufReader::new(stderr)
+            .lines()
+            .map_while(|l| l.ok())
+        {
             if lines_tx.send(line).is_err() {
                 break;
             }
@@ -235,10 +360,18 @@ fn keys_switch_the_integrator_save_and_quit() {
     let root = conn.setup().roots[screen].root;
     let min = conn.setup().min_keycode;
     let count = conn.setup().max_keycode - min + 1;
-    let map = conn.get_keyboard_mapping(min, count).unwrap().reply().unwrap();
+    let map = conn
+        .get_keyboard_mapping(min, count)
+        .unwrap()
+        .reply()
+        .unwrap();
     let per = map.keysyms_per_keycode as usize;
     let keycode = |keysym: u32| -> u8 {
-        let i = map.keysyms.iter().position(|&k| k == keysym).expect("keysym in the keymap");
+        let i = map
+            .keysyms
+            .iter()
+            .position(|&k| k == keysym)
+            .expect("keysym in the keymap");
         min + (i / per) as u8
     };
     // No window manager to give the window the keyboard focus: give it ourselves (the
@@ -246,14 +379,23 @@ fn keys_switch_the_integrator_save_and_quit() {
     let children = conn.query_tree(root).unwrap().reply().unwrap().children;
     let window = *children
         .iter()
-        .find(|&&w| conn.get_geometry(w).unwrap().reply().is_ok_and(|g| (g.width, g.height) == (48, 32)))
+        .find(|&&w| {
+            conn.get_geometry(w)
+                .unwrap()
+                .reply()
+                .is_ok_and(|g| (g.width, g.height) == (48, 32))
+        })
         .expect("the viewer's 48x32 window");
-    conn.set_input_focus(InputFocus::PARENT, window, x11rb::CURRENT_TIME).unwrap();
-    conn.xtest_fake_input(MOTION_NOTIFY_EVENT, 0, 0, root, 10, 10, 0).unwrap();
+    conn.set_input_focus(InputFocus::PARENT, window, x11rb::CURRENT_TIME)
+        .unwrap();
+    conn.xtest_fake_input(MOTION_NOTIFY_EVENT, 0, 0, root, 10, 10, 0)
+        .unwrap();
     let tap = |keysym: u32| {
         let code = keycode(keysym);
-        conn.xtest_fake_input(KEY_PRESS_EVENT, code, 0, root, 0, 0, 0).unwrap();
-        conn.xtest_fake_input(KEY_RELEASE_EVENT, code, 0, root, 0, 0, 0).unwrap();
+        conn.xtest_fake_input(KEY_PRESS_EVENT, code, 0, root, 0, 0, 0)
+            .unwrap();
+        conn.xtest_fake_input(KEY_RELEASE_EVENT, code, 0, root, 0, 0, 0)
+            .unwrap();
         conn.flush().unwrap();
     };
     std::thread::sleep(std::time::Duration::from_millis(300));
@@ -266,16 +408,34 @@ fn keys_switch_the_integrator_save_and_quit() {
     assert!(status.success(), "viewer exited with {status}");
 
     // "saved view_0001.png (N frames accumulated)"
-    let n: u32 = saved.split('(').nth(1).and_then(|s| s.split_whitespace().next()).and_then(|s| s.parse().ok()).unwrap();
+    let n: u32 = saved
+        .split('(')
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse().ok())
+        .unwrap();
     assert!(n >= 1, "{saved}");
     let reference = dir.join("reference.exr");
     let spp = n.to_string();
-    let mut render = vec!["render", "--backend", "gpu", "--integrator", "pt", "--spp", &spp, "--out", reference.to_str().unwrap()];
+    let mut render = vec![
+        "render",
+        "--backend",
+        "gpu",
+        "--integrator",
+        "pt",
+        "--spp",
+        &spp,
+        "--out",
+        reference.to_str().unwrap(),
+    ];
     render.extend(common);
     let o = runner(&render, None);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let a = runner::output::read_image(&dir.join("view_0001.exr")).unwrap();
     let b = runner::output::read_image(&reference).unwrap();
     let e = runner::output::compare(&a, &b).unwrap();
-    assert!(e.identical > 0.97, "after '2' and 'P' the viewer saved something else than pt with {n} spp: {e:?}");
+    assert!(
+        e.identical > 0.97,
+        "after '2' and 'P' the viewer saved something else than pt with {n} spp: {e:?}"
+    );
 }

@@ -8,7 +8,7 @@ use glam::Vec3A;
 use kernels::types::{Bvh2Node, CwBvhNode, Triangle};
 use obvhs::aabb::Aabb;
 use obvhs::ploc::{PlocSearchDistance, SortPrecision};
-use obvhs::{BvhBuildParams, Boundable};
+use obvhs::{Boundable, BvhBuildParams};
 
 /// A triangle's box, padded by a few ulps of its coordinates. Boxes that strictly contain
 /// their triangles keep rays that run exactly in a face plane (axis-parallel rays starting
@@ -89,7 +89,8 @@ pub fn build_cwbvh(triangles: &[Triangle]) -> Built<CwBvhNode> {
     let boxes = padded_boxes(triangles);
     let bvh = obvhs::cwbvh::builder::build_cwbvh(&boxes, params(), &mut Duration::default());
     // Same 80 bytes, read as words on our side.
-    let nodes = bytemuck::cast_slice::<obvhs::cwbvh::node::CwBvhNode, CwBvhNode>(&bvh.nodes).to_vec();
+    let nodes =
+        bytemuck::cast_slice::<obvhs::cwbvh::node::CwBvhNode, CwBvhNode>(&bvh.nodes).to_vec();
     Built {
         nodes,
         order: bvh.primitive_indices,

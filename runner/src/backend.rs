@@ -50,7 +50,12 @@ pub fn choose_auto(adapters: &[AdapterFit]) -> AutoChoice {
         return AutoChoice::Gpu(i);
     }
     if let Some(a) = adapters.iter().find(|a| !a.software) {
-        let why = a.fits.as_ref().err().map(|e| e.to_string()).unwrap_or_default();
+        let why = a
+            .fits
+            .as_ref()
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
         return AutoChoice::Cpu(format!(
             "the scene does not fit on GPU '{}' ({why}); rendering on the CPU backend instead",
             a.name
@@ -72,28 +77,50 @@ mod tests {
     use crate::error::Error;
 
     fn adapter(name: &str, software: bool, fits: bool) -> AdapterFit {
-        let fits = if fits { Ok(()) } else { Err(Error("the triangle buffer needs 9 bytes".into())) };
-        AdapterFit { name: name.into(), software, fits }
+        let fits = if fits {
+            Ok(())
+        } else {
+            Err(Error("the triangle buffer needs 9 bytes".into()))
+        };
+        AdapterFit {
+            name: name.into(),
+            software,
+            fits,
+        }
     }
 
     #[test]
     fn auto_prefers_a_hardware_gpu_the_scene_fits_on() {
-        let list = [adapter("llvmpipe", true, true), adapter("small", false, false), adapter("big", false, true)];
+        let list = [
+            adapter("llvmpipe", true, true),
+            adapter("small", false, false),
+            adapter("big", false, true),
+        ];
         assert_eq!(choose_auto(&list), AutoChoice::Gpu(2));
     }
 
     #[test]
     fn auto_falls_back_to_the_cpu_and_says_why() {
-        let AutoChoice::Cpu(why) = choose_auto(&[adapter("small", false, false), adapter("llvmpipe", true, true)])
-        else {
+        let AutoChoice::Cpu(why) = choose_auto(&[
+            adapter("small", false, false),
+            adapter("llvmpipe", true, true),
+        ]) else {
             panic!("a scene that fits no hardware GPU must go to the CPU backend");
         };
-        assert!(why.contains("'small'") && why.contains("triangle buffer needs 9 bytes"), "{why}");
+        assert!(
+            why.contains("'small'") && why.contains("triangle buffer needs 9 bytes"),
+            "{why}"
+        );
         let AutoChoice::Cpu(why) = choose_auto(&[adapter("llvmpipe", true, true)]) else {
             panic!("a software driver must not be chosen");
         };
-        assert!(why.contains("no hardware GPU") && why.contains("'llvmpipe'"), "{why}");
-        let AutoChoice::Cpu(why) = choose_auto(&[]) else { panic!("no adapter: CPU") };
+        assert!(
+            why.contains("no hardware GPU") && why.contains("'llvmpipe'"),
+            "{why}"
+        );
+        let AutoChoice::Cpu(why) = choose_auto(&[]) else {
+            panic!("no adapter: CPU")
+        };
         assert!(why.contains("no Vulkan adapter"), "{why}");
     }
 }

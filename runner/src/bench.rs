@@ -55,8 +55,16 @@ pub fn with_unit(x: f64) -> String {
         .iter()
         .find(|(scale, _)| x.abs() >= *scale)
         .map_or((x, ""), |&(scale, prefix)| (x / scale, prefix));
-    let decimals = if value.abs() >= 100.0 { 0 } else if value.abs() >= 10.0 { 1 } else { 2 };
-    format!("{value:.decimals$} {prefix}").trim_end().to_string()
+    let decimals = if value.abs() >= 100.0 {
+        0
+    } else if value.abs() >= 10.0 {
+        1
+    } else {
+        2
+    };
+    format!("{value:.decimals$} {prefix}")
+        .trim_end()
+        .to_string()
 }
 
 impl BenchReport {
@@ -68,9 +76,17 @@ impl BenchReport {
         let mut s = String::new();
         let _ = writeln!(s, "scene          {}", self.scene);
         let _ = writeln!(s, "triangles      {}", self.triangles);
-        let _ = writeln!(s, "BVH            {} (build {:.1} ms)", self.traversal, self.bvh_build_ms);
+        let _ = writeln!(
+            s,
+            "BVH            {} (build {:.1} ms)",
+            self.traversal, self.bvh_build_ms
+        );
         let _ = writeln!(s, "backend        {}", self.backend);
-        let _ = writeln!(s, "workload       {} at {}x{}, {} spp", self.integrator, self.width, self.height, self.spp);
+        let _ = writeln!(
+            s,
+            "workload       {} at {}x{}, {} spp",
+            self.integrator, self.width, self.height, self.spp
+        );
         let _ = writeln!(s, "rays/frame     {}", self.rays_per_frame);
         let _ = writeln!(
             s,
@@ -79,7 +95,12 @@ impl BenchReport {
             median(&self.frame_ms),
             self.frame_ms.len()
         );
-        let _ = writeln!(s, "ms/pass        min {:.3}  median {:.3}", min(&self.pass_ms), median(&self.pass_ms));
+        let _ = writeln!(
+            s,
+            "ms/pass        min {:.3}  median {:.3}",
+            min(&self.pass_ms),
+            median(&self.pass_ms)
+        );
         for (name, ms) in &self.breakdown {
             let _ = writeln!(s, "  {name:<12} {ms:.3} ms (median per frame)");
         }
@@ -117,27 +138,21 @@ impl BenchReport {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn rates_carry_their_unit() {
-        use super::with_unit;
-        assert_eq!(with_unit(3.3625e9), "3.36 G");
-        assert_eq!(with_unit(42.13e6), "42.1 M");
-        assert_eq!(with_unit(812.4e3), "812 k");
-        assert_eq!(with_unit(1000.0), "1.00 k");
-        assert_eq!(with_unit(12.0), "12.0");
-        assert_eq!(with_unit(0.5), "0.50");
-    }
-}
-
 /// One timed frame: the GPU work of `render` without reading anything back. Reading the
 /// image back after every frame left the GPU idle most of the time, and an H100 then lowers
 /// its clocks within seconds (seen: 1980 → 420 MHz, timestamps up to 5x longer).
 fn frame(backend: &mut dyn Backend, k: &KernelArgs, params: &FrameParams) -> Result<RenderStats> {
     backend.clear()?;
     let mut stats = RenderStats::default();
-    accumulate(backend, k.integrator, params, k.spp, 1, &ProgressBar::hidden(), &mut stats)?;
+    accumulate(
+        backend,
+        k.integrator,
+        params,
+        k.spp,
+        1,
+        &ProgressBar::hidden(),
+        &mut stats,
+    )?;
     Ok(stats)
 }
 
@@ -175,7 +190,9 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
         for (name, ms) in stats.breakdown {
             let per_frame = ms / k.spp.max(1) as f64;
             match per_pass.iter_mut().find(|(n, _)| *n == name) {
-                Some((_, runs)) if runs.len() == frame_ms.len() => *runs.last_mut().unwrap() += per_frame,
+                Some((_, runs)) if runs.len() == frame_ms.len() => {
+                    *runs.last_mut().unwrap() += per_frame
+                }
                 Some((_, runs)) => runs.push(per_frame),
                 None => per_pass.push((name, vec![per_frame])),
             }
@@ -183,7 +200,10 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
     }
     // Rays of the last run (the count restarts with each run's clear).
     let rays_per_frame = backend.rays_traced()?;
-    let breakdown = per_pass.into_iter().map(|(name, runs)| (name, median(&runs))).collect();
+    let breakdown = per_pass
+        .into_iter()
+        .map(|(name, runs)| (name, median(&runs)))
+        .collect();
     Ok(BenchReport {
         scene: args
             .scene
@@ -204,4 +224,18 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
         pass_ms,
         breakdown,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn rates_carry_their_unit() {
+        use super::with_unit;
+        assert_eq!(with_unit(3.3625e9), "3.36 G");
+        assert_eq!(with_unit(42.13e6), "42.1 M");
+        assert_eq!(with_unit(812.4e3), "812 k");
+        assert_eq!(with_unit(1000.0), "1.00 k");
+        assert_eq!(with_unit(12.0), "12.0");
+        assert_eq!(with_unit(0.5), "0.50");
+    }
 }

@@ -78,8 +78,11 @@ pub enum RestirBias {
 
 impl RestirBias {
     /// The mode the build chose (the `restir-unbiased` feature, on by default).
-    pub const COMPILED_DEFAULT: RestirBias =
-        if kernels::integrators::restir::UNBIASED_BY_DEFAULT { RestirBias::Unbiased } else { RestirBias::Biased };
+    pub const COMPILED_DEFAULT: RestirBias = if kernels::integrators::restir::UNBIASED_BY_DEFAULT {
+        RestirBias::Unbiased
+    } else {
+        RestirBias::Biased
+    };
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
@@ -215,7 +218,12 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 1, value_name = "N")]
     pub frames: u32,
     /// Move the camera around --target by this many degrees per frame (about --up)
-    #[arg(long, default_value_t = 0.0, value_name = "DEG", allow_hyphen_values = true)]
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        value_name = "DEG",
+        allow_hyphen_values = true
+    )]
     pub orbit: f32,
     /// Start the sequence at this frame: its camera (--orbit) and random numbers are those
     /// of frame F of a longer sequence (e.g. a converged reference for one frame of an orbit)

@@ -66,8 +66,15 @@ impl CpuBackend {
         let n = self.accum.len();
         let st = &mut self.restir;
         if st.gbuffers[0].len() != n {
-            st.gbuffers = [vec![GBufferTexel::default(); n], vec![GBufferTexel::default(); n]];
-            st.reservoirs = [vec![Reservoir::empty(); n], vec![Reservoir::empty(); n], vec![Reservoir::empty(); n]];
+            st.gbuffers = [
+                vec![GBufferTexel::default(); n],
+                vec![GBufferTexel::default(); n],
+            ];
+            st.reservoirs = [
+                vec![Reservoir::empty(); n],
+                vec![Reservoir::empty(); n],
+                vec![Reservoir::empty(); n],
+            ];
         }
         st.pass_ms.clear();
         let scene = self.scene.kernel();
@@ -83,29 +90,39 @@ impl CpuBackend {
             let mut g_cur = std::mem::take(&mut st.gbuffers[sl.g_cur]);
             let g_prev = &st.gbuffers[sl.g_prev];
             match pass {
-                RestirPass::Primary => per_pixel(width, &mut g_cur, &mut self.ray_counts, |x, y, o, rays| {
-                    *o = restir::primary_hit(&scene, p, x, y, rays);
-                }),
+                RestirPass::Primary => {
+                    per_pixel(width, &mut g_cur, &mut self.ray_counts, |x, y, o, rays| {
+                        *o = restir::primary_hit(&scene, p, x, y, rays);
+                    })
+                }
                 RestirPass::Shade => {
                     let (g, r) = (&g_cur, &st.reservoirs[sl.res_in]);
-                    per_pixel(width, &mut self.accum, &mut self.ray_counts, |x, y, acc, rays| {
-                        let i = (y * width + x) as usize;
-                        let l = restir::shade_pass(&scene, p, &g[i], &r[i], i as u32, rays);
-                        let l = if l.is_finite() { l } else { glam::Vec3::ZERO };
-                        *acc = [acc[0] + l.x, acc[1] + l.y, acc[2] + l.z, acc[3] + 1.0];
-                    });
+                    per_pixel(
+                        width,
+                        &mut self.accum,
+                        &mut self.ray_counts,
+                        |x, y, acc, rays| {
+                            let i = (y * width + x) as usize;
+                            let l = restir::shade_pass(&scene, p, &g[i], &r[i], i as u32, rays);
+                            let l = if l.is_finite() { l } else { glam::Vec3::ZERO };
+                            *acc = [acc[0] + l.x, acc[1] + l.y, acc[2] + l.z, acc[3] + 1.0];
+                        },
+                    );
                 }
                 _ => {
                     let mut out = std::mem::take(&mut st.reservoirs[sl.res_out]);
-                    let (res_in, res_prev) = (&st.reservoirs[sl.res_in], &st.reservoirs[sl.res_prev]);
+                    let (res_in, res_prev) =
+                        (&st.reservoirs[sl.res_in], &st.reservoirs[sl.res_prev]);
                     let g = &g_cur;
                     per_pixel(width, &mut out, &mut self.ray_counts, |x, y, o, rays| {
                         let i = y * width + x;
                         *o = match pass {
-                            RestirPass::Initial => restir::initial_pass(&scene, p, &g[i as usize], i, rays),
-                            RestirPass::Temporal => {
-                                restir::temporal_pass(&scene, p, g, g_prev, res_in, res_prev, x, y, rays)
+                            RestirPass::Initial => {
+                                restir::initial_pass(&scene, p, &g[i as usize], i, rays)
                             }
+                            RestirPass::Temporal => restir::temporal_pass(
+                                &scene, p, g, g_prev, res_in, res_prev, x, y, rays,
+                            ),
                             _ => restir::spatial_pass(&scene, p, g, res_in, x, y, rays),
                         };
                     });
@@ -113,7 +130,8 @@ impl CpuBackend {
                 }
             }
             st.gbuffers[sl.g_cur] = g_cur;
-            st.pass_ms.push((pass.name(), start.elapsed().as_secs_f64() * 1e3));
+            st.pass_ms
+                .push((pass.name(), start.elapsed().as_secs_f64() * 1e3));
         }
     }
 }
@@ -130,17 +148,29 @@ impl Backend for CpuBackend {
             return Ok(start.elapsed().as_secs_f64() * 1e3);
         }
         let scene = self.scene.kernel();
-        per_pixel(self.width, &mut self.accum, &mut self.ray_counts, |x, y, acc, rays| {
-            let r = match integrator {
-                Integrator::Ao => ao::render_pixel(&scene, params, x, y),
-                Integrator::Pt => path::render_pixel(&scene, params, x, y, path::BSDF),
-                Integrator::Nee => path::render_pixel(&scene, params, x, y, path::NEE),
-                Integrator::Mis => path::render_pixel(&scene, params, x, y, path::MIS),
-                Integrator::Ris | Integrator::Restir => path::render_pixel(&scene, params, x, y, path::RIS),
-            };
-            *acc = [acc[0] + r.sum.x, acc[1] + r.sum.y, acc[2] + r.sum.z, acc[3] + params.samples as f32];
-            *rays = r.rays;
-        });
+        per_pixel(
+            self.width,
+            &mut self.accum,
+            &mut self.ray_counts,
+            |x, y, acc, rays| {
+                let r = match integrator {
+                    Integrator::Ao => ao::render_pixel(&scene, params, x, y),
+                    Integrator::Pt => path::render_pixel(&scene, params, x, y, path::BSDF),
+                    Integrator::Nee => path::render_pixel(&scene, params, x, y, path::NEE),
+                    Integrator::Mis => path::render_pixel(&scene, params, x, y, path::MIS),
+                    Integrator::Ris | Integrator::Restir => {
+                        path::render_pixel(&scene, params, x, y, path::RIS)
+                    }
+                };
+                *acc = [
+                    acc[0] + r.sum.x,
+                    acc[1] + r.sum.y,
+                    acc[2] + r.sum.z,
+                    acc[3] + params.samples as f32,
+                ];
+                *rays = r.rays;
+            },
+        );
         Ok(start.elapsed().as_secs_f64() * 1e3)
     }
 

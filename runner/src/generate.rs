@@ -19,12 +19,17 @@ struct SceneRng {
 
 impl SceneRng {
     fn new(seed: u32) -> Self {
-        Self { state: pcg_hash(seed) }
+        Self {
+            state: pcg_hash(seed),
+        }
     }
 
     /// Uniform in [0, 1) with 24 bits.
     fn next_f32(&mut self) -> f32 {
-        self.state = self.state.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+        self.state = self
+            .state
+            .wrapping_mul(747_796_405)
+            .wrapping_add(2_891_336_453);
         let s = self.state;
         let word = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277_803_737);
         (((word >> 22) ^ word) >> 8) as f32 * (1.0 / 16_777_216.0)
@@ -36,7 +41,8 @@ use crate::error::Result;
 use crate::scene::{CameraHint, Scene};
 
 /// Names accepted by `--scene` besides OBJ paths.
-pub const BUILTIN_NAMES: &str = "cornell-box, many-lights, rocks-<N> (N triangles, e.g. rocks-100k, rocks-1m)";
+pub const BUILTIN_NAMES: &str =
+    "cornell-box, many-lights, rocks-<N> (N triangles, e.g. rocks-100k, rocks-1m)";
 
 /// A generated scene before BVH construction.
 pub struct Generated {
@@ -64,8 +70,12 @@ fn parse_count(s: &str) -> Option<usize> {
     let x: f64 = num.parse().ok()?;
     let count = x * mult as f64;
     // A whole number of triangles, at least one: "rocks-0.5" and "rocks-1e-300" are typos.
-    (count >= 1.0 && count <= 50e6 && count.fract() == 0.0).then_some(count as usize)
+    ((1.0..=50e6).contains(&count) && count.fract() == 0.0).then_some(count as usize)
 }
+
+/// Range of the rocks' noise phases (about 2π, as first written).
+#[allow(clippy::approx_constant)]
+const ROCK_PHASE_RANGE: f32 = 6.283;
 
 /// The built-in scene called `name`, or None if there is none by that name.
 pub fn builtin(name: &str) -> Option<Result<Generated>> {
@@ -89,7 +99,14 @@ pub fn icosphere(c: Vec3, r: f32, subdiv: u32, material: u32) -> Vec<Triangle> {
     let (verts, faces) = icosphere_mesh(subdiv);
     faces
         .iter()
-        .map(|f| Triangle::new(c + verts[f[0]] * r, c + verts[f[1]] * r, c + verts[f[2]] * r, material))
+        .map(|f| {
+            Triangle::new(
+                c + verts[f[0]] * r,
+                c + verts[f[1]] * r,
+                c + verts[f[2]] * r,
+                material,
+            )
+        })
         .collect()
 }
 
@@ -97,18 +114,43 @@ pub fn icosphere(c: Vec3, r: f32, subdiv: u32, material: u32) -> Vec<Triangle> {
 pub fn icosphere_mesh(subdiv: u32) -> (Vec<Vec3>, Vec<[usize; 3]>) {
     let t = (1.0 + 5f32.sqrt()) / 2.0;
     let mut verts: Vec<Vec3> = [
-        (-1.0, t, 0.0), (1.0, t, 0.0), (-1.0, -t, 0.0), (1.0, -t, 0.0),
-        (0.0, -1.0, t), (0.0, 1.0, t), (0.0, -1.0, -t), (0.0, 1.0, -t),
-        (t, 0.0, -1.0), (t, 0.0, 1.0), (-t, 0.0, -1.0), (-t, 0.0, 1.0),
+        (-1.0, t, 0.0),
+        (1.0, t, 0.0),
+        (-1.0, -t, 0.0),
+        (1.0, -t, 0.0),
+        (0.0, -1.0, t),
+        (0.0, 1.0, t),
+        (0.0, -1.0, -t),
+        (0.0, 1.0, -t),
+        (t, 0.0, -1.0),
+        (t, 0.0, 1.0),
+        (-t, 0.0, -1.0),
+        (-t, 0.0, 1.0),
     ]
     .iter()
     .map(|&(x, y, z)| Vec3::new(x, y, z).normalize())
     .collect();
     let mut faces: Vec<[usize; 3]> = vec![
-        [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11],
-        [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8],
-        [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9],
-        [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
     ];
     for _ in 0..subdiv {
         let mut mid: HashMap<(usize, usize), usize> = HashMap::new();
@@ -141,7 +183,8 @@ pub fn quad(q: [Vec3; 4], material: u32) -> [Triangle; 2] {
 
 /// Closed axis-aligned box as 12 triangles, counter-clockwise seen from outside.
 pub fn closed_box(lo: Vec3, hi: Vec3, material: u32) -> Vec<Triangle> {
-    let p = |x: usize, y: usize, z: usize| Vec3::new([lo.x, hi.x][x], [lo.y, hi.y][y], [lo.z, hi.z][z]);
+    let p =
+        |x: usize, y: usize, z: usize| Vec3::new([lo.x, hi.x][x], [lo.y, hi.y][y], [lo.z, hi.z][z]);
     let quads = [
         [p(0, 0, 0), p(0, 1, 0), p(1, 1, 0), p(1, 0, 0)], // -z
         [p(0, 0, 1), p(1, 0, 1), p(1, 1, 1), p(0, 1, 1)], // +z
@@ -166,8 +209,8 @@ pub fn many_lights() -> Generated {
     let mut rng = SceneRng::new(2024);
     let mut u = move || rng.next_f32();
     let mut materials = vec![
-        Material::new(Vec3::splat(0.6), Vec3::ZERO),            // floor
-        Material::new(Vec3::new(0.7, 0.6, 0.5), Vec3::ZERO),    // blocks
+        Material::new(Vec3::splat(0.6), Vec3::ZERO), // floor
+        Material::new(Vec3::new(0.7, 0.6, 0.5), Vec3::ZERO), // blocks
     ];
     let half = 30.0;
     let mut tris: Vec<Triangle> = quad(
@@ -187,7 +230,11 @@ pub fn many_lights() -> Generated {
     }
     // 128 emitters: small quads facing down, log-uniform strengths over 3 decades.
     for _ in 0..128 {
-        let c = Vec3::new((u() - 0.5) * 50.0, 0.3 + 5.0 * u(), (u() - 0.5) * 50.0 - 5.0);
+        let c = Vec3::new(
+            (u() - 0.5) * 50.0,
+            0.3 + 5.0 * u(),
+            (u() - 0.5) * 50.0 - 5.0,
+        );
         let s = 0.05 + 0.25 * u();
         let strength = 10f32.powf(0.5 + 3.0 * u());
         let colour = hue(u()) * 0.7 + Vec3::splat(0.3);
@@ -217,7 +264,11 @@ pub fn many_lights() -> Generated {
 
 /// Value noise on the unit sphere from a few random plane waves: cheap, smooth, seeded.
 fn bumps(p: Vec3, waves: &[(Vec3, f32)]) -> f32 {
-    waves.iter().map(|(k, phase)| (p.dot(*k) + phase).sin()).sum::<f32>() / waves.len() as f32
+    waves
+        .iter()
+        .map(|(k, phase)| (p.dot(*k) + phase).sin())
+        .sum::<f32>()
+        / waves.len() as f32
 }
 
 /// About `target` triangles: displaced icospheres (5,120 triangles each) of random sizes
@@ -248,13 +299,30 @@ pub fn rocks(target: usize) -> Generated {
     ));
     for _ in 0..count {
         let waves: Vec<(Vec3, f32)> = (0..6)
-            .map(|_| (Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5) * 12.0, u() * 6.283))
+            // 6.283, not TAU: the rocks stay the scenes every measurement was made on.
+            .map(|_| {
+                (
+                    Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5) * 12.0,
+                    u() * ROCK_PHASE_RANGE,
+                )
+            })
             .collect();
         let r = 1.0 + 4.0 * u() * u();
-        let c = Vec3::new((u() - 0.5) * 2.0 * extent, r * (0.3 + 1.5 * u()), (u() - 0.5) * 2.0 * extent);
+        let c = Vec3::new(
+            (u() - 0.5) * 2.0 * extent,
+            r * (0.3 + 1.5 * u()),
+            (u() - 0.5) * 2.0 * extent,
+        );
         let squash = Vec3::new(1.0 + 0.5 * u(), 0.5 + 0.7 * u(), 1.0 + 0.5 * u());
-        let displaced: Vec<Vec3> = verts.iter().map(|v| c + *v * squash * r * (1.0 + 0.35 * bumps(*v, &waves))).collect();
-        tris.extend(faces.iter().map(|f| Triangle::new(displaced[f[0]], displaced[f[1]], displaced[f[2]], 1)));
+        let displaced: Vec<Vec3> = verts
+            .iter()
+            .map(|v| c + *v * squash * r * (1.0 + 0.35 * bumps(*v, &waves)))
+            .collect();
+        tris.extend(
+            faces
+                .iter()
+                .map(|f| Triangle::new(displaced[f[0]], displaced[f[1]], displaced[f[2]], 1)),
+        );
     }
     let h = 4.0 * extent.sqrt() + 30.0;
     let l = 0.2 * extent;
@@ -287,7 +355,16 @@ pub fn to_obj(g: &Generated, mtl_name: &str) -> (String, String) {
     let _ = writeln!(
         obj,
         "# camera: eye={},{},{} target={},{},{} up={},{},{} fov={}",
-        c.eye.x, c.eye.y, c.eye.z, c.target.x, c.target.y, c.target.z, c.up.x, c.up.y, c.up.z, c.fov
+        c.eye.x,
+        c.eye.y,
+        c.eye.z,
+        c.target.x,
+        c.target.y,
+        c.target.z,
+        c.up.x,
+        c.up.y,
+        c.up.z,
+        c.fov
     );
     let _ = writeln!(obj, "mtllib {mtl_name}");
     let mut current = u32::MAX;
@@ -306,7 +383,11 @@ pub fn to_obj(g: &Generated, mtl_name: &str) -> (String, String) {
         let _ = writeln!(mtl, "newmtl m{i}");
         let _ = writeln!(mtl, "Kd {} {} {}", m.albedo[0], m.albedo[1], m.albedo[2]);
         if m.is_emissive() {
-            let _ = writeln!(mtl, "Ke {} {} {}", m.emission[0], m.emission[1], m.emission[2]);
+            let _ = writeln!(
+                mtl,
+                "Ke {} {} {}",
+                m.emission[0], m.emission[1], m.emission[2]
+            );
         }
     }
     (obj, mtl)
@@ -329,7 +410,12 @@ mod tests {
         let g = many_lights();
         assert_eq!(g.triangles.len(), 546);
         assert_eq!(g.materials[2].emission, [19.7662, 8.200587, 27.33529]);
-        let p = g.triangles.iter().find(|t| t.material == 95).map(|t| t.p0).unwrap();
+        let p = g
+            .triangles
+            .iter()
+            .find(|t| t.material == 95)
+            .map(|t| t.p0)
+            .unwrap();
         assert_eq!(p, [-3.0192213, 4.6667233, -19.55682]);
     }
 }

@@ -37,12 +37,21 @@ impl Integrator {
         }
     }
     /// Integrators with a single image kernel (ReSTIR runs a schedule of passes).
-    pub const IMAGE_KERNELS: [Integrator; 5] =
-        [Integrator::Ao, Integrator::Pt, Integrator::Nee, Integrator::Mis, Integrator::Ris];
+    pub const IMAGE_KERNELS: [Integrator; 5] = [
+        Integrator::Ao,
+        Integrator::Pt,
+        Integrator::Nee,
+        Integrator::Mis,
+        Integrator::Ris,
+    ];
 }
 
 /// A storage-buffer binding of a bind group layout (every binding of ours is one).
-pub fn storage_entry(binding: u32, read_only: bool, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+pub fn storage_entry(
+    binding: u32,
+    read_only: bool,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility,
@@ -57,7 +66,12 @@ pub fn storage_entry(binding: u32, read_only: bool, visibility: wgpu::ShaderStag
 
 /// The kernels' SPIR-V as 32-bit words.
 pub fn spirv_words() -> Vec<u32> {
-    SPIRV.chunks_exact(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])).collect()
+    SPIRV
+        .as_chunks::<4>()
+        .0
+        .iter()
+        .map(|w| u32::from_le_bytes(*w))
+        .collect()
 }
 
 /// A Vulkan instance; the viewer passes its display so that it can present to windows.
@@ -82,10 +96,11 @@ pub fn adapters() -> Vec<wgpu::Adapter> {
 }
 
 pub fn adapters_of(instance: &wgpu::Instance) -> Vec<wgpu::Adapter> {
-    let mut list: Vec<wgpu::Adapter> = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN))
-        .into_iter()
-        .filter(|a| a.features().contains(wgpu::Features::PASSTHROUGH_SHADERS))
-        .collect();
+    let mut list: Vec<wgpu::Adapter> =
+        pollster::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN))
+            .into_iter()
+            .filter(|a| a.features().contains(wgpu::Features::PASSTHROUGH_SHADERS))
+            .collect();
     list.sort_by_key(|a| is_software(a) as u8);
     list
 }
@@ -138,7 +153,9 @@ impl GpuContext {
         let errors = Arc::new(Mutex::new(None));
         let sink = errors.clone();
         device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
-            sink.lock().unwrap().get_or_insert(format!("GPU error: {e}"));
+            sink.lock()
+                .unwrap()
+                .get_or_insert(format!("GPU error: {e}"));
         }));
         let sink = errors.clone();
         device.set_device_lost_callback(move |reason, msg| {
@@ -169,7 +186,8 @@ impl GpuContext {
             })
         };
 
-        let storage = |binding, read_only| storage_entry(binding, read_only, wgpu::ShaderStages::COMPUTE);
+        let storage =
+            |binding, read_only| storage_entry(binding, read_only, wgpu::ShaderStages::COMPUTE);
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("scene"),
             entries: &[
@@ -197,11 +215,12 @@ impl GpuContext {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let restir_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("restir"),
-            bind_group_layouts: &[Some(&layout), Some(&restir_layout)],
-            immediate_size: 0,
-        });
+        let restir_pipeline_layout =
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("restir"),
+                bind_group_layouts: &[Some(&layout), Some(&restir_layout)],
+                immediate_size: 0,
+            });
         let ctx = Self {
             device,
             queue,
@@ -223,7 +242,10 @@ impl GpuContext {
     /// Make the pipelines `integrator` runs, if not made yet.
     fn ensure_pipelines(&mut self, integrator: Integrator) -> Result<()> {
         let entries: Vec<&'static str> = if integrator == Integrator::Restir {
-            RestirPass::ENTRY_POINTS.iter().map(|p| p.entry_point()).collect()
+            RestirPass::ENTRY_POINTS
+                .iter()
+                .map(|p| p.entry_point())
+                .collect()
         } else {
             vec![integrator.entry_point()]
         };
@@ -231,16 +253,21 @@ impl GpuContext {
             if self.pipelines.contains_key(name) {
                 continue;
             }
-            let layout =
-                if integrator == Integrator::Restir { &self.restir_pipeline_layout } else { &self.image_pipeline_layout };
-            let pipeline = self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(name),
-                layout: Some(layout),
-                module: &self.module,
-                entry_point: Some(name),
-                compilation_options: Default::default(),
-                cache: None,
-            });
+            let layout = if integrator == Integrator::Restir {
+                &self.restir_pipeline_layout
+            } else {
+                &self.image_pipeline_layout
+            };
+            let pipeline = self
+                .device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(name),
+                    layout: Some(layout),
+                    module: &self.module,
+                    entry_point: Some(name),
+                    compilation_options: Default::default(),
+                    cache: None,
+                });
             self.pipelines.insert(name, pipeline);
         }
         self.check_errors()
@@ -263,16 +290,16 @@ impl GpuContext {
     pub fn describe(&self) -> String {
         format!(
             "gpu ({}, {:?}, {})",
-            self.info.name,
-            self.info.device_type,
-            self.info.driver_info
+            self.info.name, self.info.device_type, self.info.driver_info
         )
     }
 }
 
 /// Check a buffer against the device limits before allocating anything.
 pub fn check_buffer_size(limits: &wgpu::Limits, what: &str, bytes: u64) -> Result<()> {
-    let max = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    let max = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
     if bytes > max {
         bail!(
             "{what} needs {bytes} bytes, over this GPU's storage buffer limit of {max} bytes \
@@ -299,13 +326,41 @@ pub fn check_fits(limits: &wgpu::Limits, scene: &Scene, width: u32, height: u32)
         );
     }
     let pixels = width as u64 * height as u64;
-    check_buffer_size(limits, "the triangle buffer", std::mem::size_of_val(&scene.triangles[..]) as u64)?;
-    check_buffer_size(limits, "the material buffer", std::mem::size_of_val(&scene.materials[..]) as u64)?;
-    check_buffer_size(limits, "the BVH node buffer", std::mem::size_of_val(&scene.nodes[..]) as u64)?;
-    check_buffer_size(limits, "the light buffer", std::mem::size_of_val(&scene.lights[..]) as u64)?;
-    check_buffer_size(limits, "the image buffer", pixels * ACCUMULATION_TEXEL_BYTES)?;
-    check_buffer_size(limits, "the ReSTIR G-buffer", pixels * std::mem::size_of::<GBufferTexel>() as u64)?;
-    check_buffer_size(limits, "the ReSTIR reservoir buffer", pixels * std::mem::size_of::<Reservoir>() as u64)?;
+    check_buffer_size(
+        limits,
+        "the triangle buffer",
+        std::mem::size_of_val(&scene.triangles[..]) as u64,
+    )?;
+    check_buffer_size(
+        limits,
+        "the material buffer",
+        std::mem::size_of_val(&scene.materials[..]) as u64,
+    )?;
+    check_buffer_size(
+        limits,
+        "the BVH node buffer",
+        std::mem::size_of_val(&scene.nodes[..]) as u64,
+    )?;
+    check_buffer_size(
+        limits,
+        "the light buffer",
+        std::mem::size_of_val(&scene.lights[..]) as u64,
+    )?;
+    check_buffer_size(
+        limits,
+        "the image buffer",
+        pixels * ACCUMULATION_TEXEL_BYTES,
+    )?;
+    check_buffer_size(
+        limits,
+        "the ReSTIR G-buffer",
+        pixels * std::mem::size_of::<GBufferTexel>() as u64,
+    )?;
+    check_buffer_size(
+        limits,
+        "the ReSTIR reservoir buffer",
+        pixels * std::mem::size_of::<Reservoir>() as u64,
+    )?;
     Ok(())
 }
 
@@ -397,13 +452,34 @@ impl GpuBackend {
             label: Some("scene"),
             layout: &ctx.layout,
             entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: triangles.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: materials.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 3, resource: nodes.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 4, resource: lights.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 5, resource: accum.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 6, resource: ray_counts.as_entire_binding() },
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: params.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: triangles.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: materials.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: nodes.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: lights.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: accum.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: ray_counts.as_entire_binding(),
+                },
             ],
         });
         let queries = ctx.timestamps.then(|| {
@@ -458,12 +534,21 @@ impl GpuBackend {
     }
 
     /// Record one image-sized dispatch of `entry` into `encoder`, timed as pair `timer`.
-    fn dispatch(&self, encoder: &mut wgpu::CommandEncoder, entry: &str, extra: Option<&wgpu::BindGroup>, timer: u32) {
-        let timestamp_writes = self.queries.as_ref().map(|(set, _, _)| wgpu::ComputePassTimestampWrites {
-            query_set: set,
-            beginning_of_pass_write_index: Some(2 * timer),
-            end_of_pass_write_index: Some(2 * timer + 1),
-        });
+    fn dispatch(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        entry: &str,
+        extra: Option<&wgpu::BindGroup>,
+        timer: u32,
+    ) {
+        let timestamp_writes =
+            self.queries
+                .as_ref()
+                .map(|(set, _, _)| wgpu::ComputePassTimestampWrites {
+                    query_set: set,
+                    beginning_of_pass_write_index: Some(2 * timer),
+                    end_of_pass_write_index: Some(2 * timer + 1),
+                });
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some(entry),
             timestamp_writes,
@@ -473,7 +558,11 @@ impl GpuBackend {
         if let Some(group) = extra {
             pass.set_bind_group(1, group, &[]);
         }
-        pass.dispatch_workgroups(self.width.div_ceil(WORKGROUP.0), self.height.div_ceil(WORKGROUP.1), 1);
+        pass.dispatch_workgroups(
+            self.width.div_ceil(WORKGROUP.0),
+            self.height.div_ceil(WORKGROUP.1),
+            1,
+        );
     }
 
     /// Device times in ms of the first `n` timed passes (wall clock split evenly when the
@@ -489,7 +578,11 @@ impl GpuBackend {
         let bytes = self.read_buffer(read)?;
         let t: Vec<u64> = bytemuck::pod_collect_to_vec(&bytes[..16 * n as usize]);
         let period = self.ctx.queue.get_timestamp_period() as f64;
-        Ok(t.chunks_exact(2).map(|p| p[1].saturating_sub(p[0]) as f64 * period * 1e-6).collect())
+        Ok(t.as_chunks::<2>()
+            .0
+            .iter()
+            .map(|[begin, end]| end.saturating_sub(*begin) as f64 * period * 1e-6)
+            .collect())
     }
 
     fn restir_buffers(&mut self) -> Result<()> {
@@ -510,7 +603,11 @@ impl GpuBackend {
         };
         self.restir = Some(RestirBuffers {
             gbuffers: [make("gbuffer a", g_size), make("gbuffer b", g_size)],
-            reservoirs: [make("reservoirs a", r_size), make("reservoirs b", r_size), make("reservoirs c", r_size)],
+            reservoirs: [
+                make("reservoirs a", r_size),
+                make("reservoirs b", r_size),
+                make("reservoirs c", r_size),
+            ],
             schedule: RestirSchedule::default(),
         });
         Ok(())
@@ -524,7 +621,10 @@ impl GpuBackend {
         let st = self.restir.as_mut().expect("allocated above");
         let plan = st.schedule.frame(params.spatial_passes);
         if plan.len() as u32 > MAX_TIMED_PASSES {
-            bail!("too many ReSTIR passes per frame ({}; at most {MAX_TIMED_PASSES})", plan.len());
+            bail!(
+                "too many ReSTIR passes per frame ({}; at most {MAX_TIMED_PASSES})",
+                plan.len()
+            );
         }
         let st = self.restir.as_ref().expect("allocated above");
         for (k, (pass, sl)) in plan.iter().enumerate() {
@@ -532,23 +632,46 @@ impl GpuBackend {
             if let RestirPass::Spatial(i) = pass {
                 p.spatial_pass = *i;
             }
-            self.ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
-            let group = self.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("restir"),
-                layout: &self.ctx.restir_layout,
-                entries: &[
-                    wgpu::BindGroupEntry { binding: 0, resource: st.gbuffers[sl.g_cur].as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 1, resource: st.gbuffers[sl.g_prev].as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 2, resource: st.reservoirs[sl.res_in].as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 3, resource: st.reservoirs[sl.res_out].as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 4, resource: st.reservoirs[sl.res_prev].as_entire_binding() },
-                ],
-            });
+            self.ctx
+                .queue
+                .write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
+            let group = self
+                .ctx
+                .device
+                .create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("restir"),
+                    layout: &self.ctx.restir_layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: st.gbuffers[sl.g_cur].as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: st.gbuffers[sl.g_prev].as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: st.reservoirs[sl.res_in].as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 3,
+                            resource: st.reservoirs[sl.res_out].as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 4,
+                            resource: st.reservoirs[sl.res_prev].as_entire_binding(),
+                        },
+                    ],
+                });
             let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
             self.dispatch(&mut encoder, pass.entry_point(), Some(&group), k as u32);
             self.ctx.queue.submit([encoder.finish()]);
         }
-        self.in_flight = Some(InFlight { start, passes: plan.iter().map(|(p, _)| p.name()).collect() });
+        self.in_flight = Some(InFlight {
+            start,
+            passes: plan.iter().map(|(p, _)| p.name()).collect(),
+        });
         Ok(())
     }
 
@@ -564,11 +687,16 @@ impl GpuBackend {
             return self.submit_restir_frame(params);
         }
         let start = Instant::now();
-        self.ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
+        self.ctx
+            .queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
         self.dispatch(&mut encoder, integrator.entry_point(), None, 0);
         self.ctx.queue.submit([encoder.finish()]);
-        self.in_flight = Some(InFlight { start, passes: Vec::new() });
+        self.in_flight = Some(InFlight {
+            start,
+            passes: Vec::new(),
+        });
         Ok(())
     }
 

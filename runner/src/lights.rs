@@ -18,14 +18,20 @@ pub fn build_light_table(triangles: &mut [Triangle], materials: &[Material]) -> 
         t.light = INVALID;
         if materials[t.material as usize].is_emissive() {
             t.light = lights.len() as u32;
-            lights.push(Light { triangle: i as u32, ..Default::default() });
+            lights.push(Light {
+                triangle: i as u32,
+                ..Default::default()
+            });
         }
     }
     let n = lights.len();
     if n == 0 {
         return lights;
     }
-    let powers: Vec<f64> = lights.iter().map(|l| power(&triangles[l.triangle as usize], materials) as f64).collect();
+    let powers: Vec<f64> = lights
+        .iter()
+        .map(|l| power(&triangles[l.triangle as usize], materials) as f64)
+        .collect();
     let total: f64 = powers.iter().sum();
     let pdfs: Vec<f64> = if total > 0.0 && total.is_finite() {
         powers.iter().map(|p| p / total).collect()

@@ -21,14 +21,19 @@ impl Log for Stderr {
 
 /// Install the logger if `RUNNER_LOG` names a level; an unknown level is an error.
 pub fn init_from_env() -> crate::error::Result<()> {
-    let Some(value) = std::env::var_os("RUNNER_LOG") else { return Ok(()) };
+    let Some(value) = std::env::var_os("RUNNER_LOG") else {
+        return Ok(());
+    };
     let value = value.to_string_lossy();
     let level: LevelFilter = match value.parse::<Level>() {
         Ok(level) => level.to_level_filter(),
-        Err(_) => crate::bail!("RUNNER_LOG='{value}' is not a log level (error, warn, info, debug, trace)"),
+        Err(_) => crate::bail!(
+            "RUNNER_LOG='{value}' is not a log level (error, warn, info, debug, trace)"
+        ),
     };
     let logger: &'static Stderr = Box::leak(Box::new(Stderr(level)));
-    log::set_logger(logger).map_err(|e| crate::error::Error(format!("cannot install the logger: {e}")))?;
+    log::set_logger(logger)
+        .map_err(|e| crate::error::Error(format!("cannot install the logger: {e}")))?;
     log::set_max_level(level);
     Ok(())
 }

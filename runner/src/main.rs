@@ -22,8 +22,13 @@ fn main() -> ExitCode {
                 .map(|s| s.to_string())
                 .or_else(|| info.payload().downcast_ref::<String>().cloned())
                 .unwrap_or_else(|| "unknown panic".into());
-            let at = info.location().map(|l| format!(" at {}:{}", l.file(), l.line())).unwrap_or_default();
-            eprintln!("error: internal error: {msg}{at} (please report it; RUST_BACKTRACE=1 for details)");
+            let at = info
+                .location()
+                .map(|l| format!(" at {}:{}", l.file(), l.line()))
+                .unwrap_or_default();
+            eprintln!(
+                "error: internal error: {msg}{at} (please report it; RUST_BACKTRACE=1 for details)"
+            );
         }));
     }
     let cli = Cli::parse();
@@ -33,9 +38,8 @@ fn main() -> ExitCode {
     }
     let result = match cli.command {
         Command::Render(args) => render_command(&args),
-        Command::Bench(args) => {
-            runner::bench::bench(&args).and_then(|r| print_stdout(&if args.json { r.json() } else { r.table() }))
-        }
+        Command::Bench(args) => runner::bench::bench(&args)
+            .and_then(|r| print_stdout(&if args.json { r.json() } else { r.table() })),
         Command::Generate(args) => generate_command(&args),
         Command::Compare(args) => compare_command(&args),
         Command::View(args) => runner::viewer::app::check_args(&args)
@@ -62,16 +66,23 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     }
     if let Some(scene_file) = args.scene.scene.as_ref().filter(|p| p.is_file()) {
         if std::fs::canonicalize(scene_file).ok() == std::fs::canonicalize(&args.out).ok() {
-            runner::bail!("--out '{}' is the scene file itself; it would be overwritten", args.out.display());
+            runner::bail!(
+                "--out '{}' is the scene file itself; it would be overwritten",
+                args.out.display()
+            );
         }
     }
     if let Some(dir) = args.out_dir.as_ref().filter(|d| d.exists() && !d.is_dir()) {
-        runner::bail!("--out-dir '{}' exists and is not a directory", dir.display());
+        runner::bail!(
+            "--out-dir '{}' exists and is not a directory",
+            dir.display()
+        );
     }
     let scene = load_scene(&args.scene)?;
     let mut params = frame_params(&args.scene, &args.kernel, &scene)?;
     // Frame F of a sequence draws the random numbers of samples F·spp onwards.
-    let first_sample = args.first_frame as u64 * args.kernel.spp as u64 + args.frames as u64 * args.kernel.spp as u64;
+    let first_sample = args.first_frame as u64 * args.kernel.spp as u64
+        + args.frames as u64 * args.kernel.spp as u64;
     if first_sample > u32::MAX as u64 {
         runner::bail!("--first-frame, --frames and --spp together exceed 2^32 samples");
     }
@@ -79,7 +90,8 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     params.sample_offset = args.first_frame * args.kernel.spp;
     // Created only once the scene has loaded: a run that fails on its input leaves nothing.
     if let Some(dir) = &args.out_dir {
-        std::fs::create_dir_all(dir).context(|| format!("cannot create --out-dir '{}'", dir.display()))?;
+        std::fs::create_dir_all(dir)
+            .context(|| format!("cannot create --out-dir '{}'", dir.display()))?;
     }
     let mut backend = open_backend(args.kernel.backend, &scene, params.width, params.height)?;
     let k = &args.kernel;
@@ -115,7 +127,13 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         k.spp,
         args.frames,
         args.accumulate,
-        |f| orbit_camera(&args.scene, &scene, args.orbit * (args.first_frame as u64 + f as u64) as f32),
+        |f| {
+            orbit_camera(
+                &args.scene,
+                &scene,
+                args.orbit * (args.first_frame as u64 + f as u64) as f32,
+            )
+        },
         |f, image| match &args.out_dir {
             Some(dir) => write_image(&dir.join(format!("frame_{f:04}.{ext}")), image),
             None => Ok(()),
@@ -147,14 +165,29 @@ fn generate_command(args: &GenerateArgs) -> Result<()> {
         ),
     };
     let mtl_path = args.out.with_extension("mtl");
-    let mtl_name = mtl_path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let mtl_name = mtl_path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let (obj, mtl) = runner::generate::to_obj(&generated, &mtl_name);
-    if args.out.extension().is_some_and(|e| e.eq_ignore_ascii_case("mtl")) {
-        runner::bail!("--out '{}' names the MTL file; give the OBJ file (the MTL is written beside it)", args.out.display());
+    if args
+        .out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mtl"))
+    {
+        runner::bail!(
+            "--out '{}' names the MTL file; give the OBJ file (the MTL is written beside it)",
+            args.out.display()
+        );
     }
     runner::output::write_file(&args.out, obj.as_bytes())?;
     runner::output::write_file(&mtl_path, mtl.as_bytes())?;
-    eprintln!("wrote {} and {} ({} triangles)", args.out.display(), mtl_path.display(), generated.triangles.len());
+    eprintln!(
+        "wrote {} and {} ({} triangles)",
+        args.out.display(),
+        mtl_path.display(),
+        generated.triangles.len()
+    );
     Ok(())
 }
 
@@ -183,7 +216,11 @@ fn print_stdout(text: &str) -> Result<()> {
     let mut out = std::io::stdout().lock();
     match writeln!(out, "{text}").and_then(|()| out.flush()) {
         Ok(()) => Ok(()),
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => std::process::exit(EXIT_BROKEN_PIPE),
-        Err(e) => Err(runner::error::Error(format!("cannot write to standard output: {e}"))),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {
+            std::process::exit(EXIT_BROKEN_PIPE)
+        }
+        Err(e) => Err(runner::error::Error(format!(
+            "cannot write to standard output: {e}"
+        ))),
     }
 }

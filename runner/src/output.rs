@@ -64,11 +64,19 @@ pub fn check_writable(path: &Path) -> Result<OutputFormat> {
         _ => Path::new("."),
     };
     if !dir.is_dir() {
-        bail!("output '{}': directory '{}' does not exist", path.display(), dir.display());
+        bail!(
+            "output '{}': directory '{}' does not exist",
+            path.display(),
+            dir.display()
+        );
     }
     let md = std::fs::metadata(dir).context(|| format!("output '{}'", path.display()))?;
     if md.permissions().readonly() {
-        bail!("output '{}': directory '{}' is not writable", path.display(), dir.display());
+        bail!(
+            "output '{}': directory '{}' is not writable",
+            path.display(),
+            dir.display()
+        );
     }
     Ok(format)
 }
@@ -89,7 +97,9 @@ pub fn write_image(path: &Path, image: &Image) -> Result<()> {
         OutputFormat::Png => {
             let mut buf = RgbImage::new(image.width, image.height);
             for (dst, src) in buf.pixels_mut().zip(&image.pixels) {
-                let c = src.to_array().map(|x| (linear_to_srgb(x) * 255.0 + 0.5) as u8);
+                let c = src
+                    .to_array()
+                    .map(|x| (linear_to_srgb(x) * 255.0 + 0.5) as u8);
                 *dst = image::Rgb(c);
             }
             buf.write_to(&mut bytes, ImageFormat::Png).context(what)?;
@@ -99,7 +109,8 @@ pub fn write_image(path: &Path, image: &Image) -> Result<()> {
             for (dst, src) in buf.pixels_mut().zip(&image.pixels) {
                 *dst = image::Rgb(src.to_array());
             }
-            buf.write_to(&mut bytes, ImageFormat::OpenExr).context(what)?;
+            buf.write_to(&mut bytes, ImageFormat::OpenExr)
+                .context(what)?;
         }
     }
     write_file(path, bytes.get_ref())
@@ -115,10 +126,16 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
     let what = || format!("cannot write '{}'", path.display());
     let target = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
     if target.exists() && !target.is_file() {
-        let mut f = std::fs::OpenOptions::new().write(true).open(&target).context(what)?;
+        let mut f = std::fs::OpenOptions::new()
+            .write(true)
+            .open(&target)
+            .context(what)?;
         return f.write_all(bytes).and_then(|()| f.flush()).context(what);
     }
-    let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = target
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let tmp = target.with_file_name(format!(".{name}.partial-{}", std::process::id()));
     let written = std::fs::File::create(&tmp).and_then(|mut f| {
         f.write_all(bytes)?;
@@ -146,7 +163,10 @@ pub fn read_image(path: &Path) -> Result<Image> {
     Ok(Image {
         width: rgb.width(),
         height: rgb.height(),
-        pixels: rgb.pixels().map(|p| Vec3::new(decode(p[0]), decode(p[1]), decode(p[2]))).collect(),
+        pixels: rgb
+            .pixels()
+            .map(|p| Vec3::new(decode(p[0]), decode(p[1]), decode(p[2])))
+            .collect(),
     })
 }
 

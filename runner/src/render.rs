@@ -71,8 +71,10 @@ fn progress_bar(total: u64, show: bool) -> ProgressBar {
     }
     let bar = ProgressBar::new(total);
     bar.set_style(
-        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp (eta {eta})")
-            .expect("static template"),
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp (eta {eta})",
+        )
+        .expect("static template"),
     );
     bar
 }
@@ -82,16 +84,29 @@ fn progress_bar(total: u64, show: bool) -> ProgressBar {
 /// one sample per frame of its pipeline, sample `s` being frame `params.frame + s`, with
 /// the frame before as history. The viewer uses this too, so a still camera converges
 /// to exactly what `render` writes.
-pub fn pass_params(integrator: Integrator, params: &FrameParams, done: u32, samples: u32) -> FrameParams {
+pub fn pass_params(
+    integrator: Integrator,
+    params: &FrameParams,
+    done: u32,
+    samples: u32,
+) -> FrameParams {
     if integrator == Integrator::Restir {
-        let mut p = FrameParams { frame: params.frame + done, samples: 1, ..*params };
+        let mut p = FrameParams {
+            frame: params.frame + done,
+            samples: 1,
+            ..*params
+        };
         if done > 0 {
             p.restir_flags |= kernels::types::RESTIR_HISTORY_VALID;
             p.prev_camera = p.camera;
         }
         p
     } else {
-        FrameParams { sample_offset: params.sample_offset + done, samples, ..*params }
+        FrameParams {
+            sample_offset: params.sample_offset + done,
+            samples,
+            ..*params
+        }
     }
 }
 
@@ -133,16 +148,28 @@ pub fn render(
     let bar = progress_bar(spp as u64, show_progress);
     backend.clear()?;
     let mut stats = RenderStats::default();
-    accumulate(backend, integrator, params, spp, samples_per_pass, &bar, &mut stats)?;
+    accumulate(
+        backend,
+        integrator,
+        params,
+        spp,
+        samples_per_pass,
+        &bar,
+        &mut stats,
+    )?;
     bar.finish_and_clear();
     let accum = backend.read_accumulation()?;
     stats.rays = backend.rays_traced()?;
-    Ok((Image::from_accumulation(params.width, params.height, &accum), stats))
+    Ok((
+        Image::from_accumulation(params.width, params.height, &accum),
+        stats,
+    ))
 }
 
 /// Render a sequence of frames whose cameras come from `camera_of(frame)`. With
 /// `average`, all frames accumulate into the returned image; else it is the last frame.
 /// `on_frame` sees each frame's image as it completes.
+#[allow(clippy::too_many_arguments)] // each is one independent choice of the caller
 pub fn render_sequence(
     backend: &mut dyn Backend,
     integrator: Integrator,
@@ -183,5 +210,8 @@ pub fn render_sequence(
         }
     }
     bar.finish_and_clear();
-    Ok((Image::from_accumulation(params.width, params.height, &sum), stats))
+    Ok((
+        Image::from_accumulation(params.width, params.height, &sum),
+        stats,
+    ))
 }

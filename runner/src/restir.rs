@@ -68,7 +68,13 @@ impl RestirSchedule {
         let history = self.prev;
         // This frame's initial reservoirs, and its temporal result (the next history).
         let (initial, temporal) = ((history + 1) % 3, (history + 2) % 3);
-        let slots = |res_in, res_out, res_prev| Slots { g_cur, g_prev, res_in, res_out, res_prev };
+        let slots = |res_in, res_out, res_prev| Slots {
+            g_cur,
+            g_prev,
+            res_in,
+            res_out,
+            res_prev,
+        };
         let mut plan = vec![
             (RestirPass::Primary, slots(temporal, initial, history)),
             (RestirPass::Initial, slots(temporal, initial, history)),
@@ -109,15 +115,33 @@ mod tests {
             }
             // Each pass reads what the one before wrote.
             for w in plan.windows(2).skip(1) {
-                assert_eq!(w[1].1.res_in, w[0].1.res_out, "{:?} -> {:?}", w[0].0, w[1].0);
+                assert_eq!(
+                    w[1].1.res_in, w[0].1.res_out,
+                    "{:?} -> {:?}",
+                    w[0].0, w[1].0
+                );
             }
-            let temporal = plan.iter().find(|(p, _)| *p == RestirPass::Temporal).unwrap().1;
+            let temporal = plan
+                .iter()
+                .find(|(p, _)| *p == RestirPass::Temporal)
+                .unwrap()
+                .1;
             if let Some(t) = last_temporal {
-                assert_eq!(temporal.res_prev, t, "history is last frame's temporal result");
+                assert_eq!(
+                    temporal.res_prev, t,
+                    "history is last frame's temporal result"
+                );
             }
             // No spatial pass or shade overwrites the history of the next frame.
-            for (pass, sl) in plan.iter().skip_while(|(p, _)| *p != RestirPass::Temporal).skip(1) {
-                assert_ne!(sl.res_out, temporal.res_out, "{pass:?} overwrites the history");
+            for (pass, sl) in plan
+                .iter()
+                .skip_while(|(p, _)| *p != RestirPass::Temporal)
+                .skip(1)
+            {
+                assert_ne!(
+                    sl.res_out, temporal.res_out,
+                    "{pass:?} overwrites the history"
+                );
             }
             last_temporal = Some(temporal.res_out);
         }

@@ -54,8 +54,15 @@ impl Scene {
         if triangles.is_empty() {
             bail!("the scene has no triangles (is it an OBJ file with faces?)");
         }
-        if let Some(t) = triangles.iter().find(|t| t.material as usize >= materials.len()) {
-            bail!("triangle refers to material {} of {}", t.material, materials.len());
+        if let Some(t) = triangles
+            .iter()
+            .find(|t| t.material as usize >= materials.len())
+        {
+            bail!(
+                "triangle refers to material {} of {}",
+                t.material,
+                materials.len()
+            );
         }
         let bvh = crate::accel::build(&triangles);
         crate::accel::check_depth(&bvh.nodes)?;
@@ -125,7 +132,9 @@ const CORNELL_BOX_MTL: &str = include_str!("../../assets/cornell_box.mtl");
 
 /// The built-in Cornell box (assets/cornell_box.obj).
 pub fn cornell_box() -> Result<Scene> {
-    parse_obj("cornell-box", CORNELL_BOX_OBJ, |_| load_mtl_text("cornell_box.mtl", CORNELL_BOX_MTL))
+    parse_obj("cornell-box", CORNELL_BOX_OBJ, |_| {
+        load_mtl_text("cornell_box.mtl", CORNELL_BOX_MTL)
+    })
 }
 
 /// Largest radiance a material or the sky may have: 2²⁴ samples of it still sum to a
@@ -199,12 +208,19 @@ pub fn read_input_file(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
     if !md.is_file() {
         return Err(Error::new(ErrorKind::InvalidInput, "not a regular file"));
     }
-    let too_large = || Error::new(ErrorKind::InvalidData, format!("larger than the limit of {limit} bytes"));
+    let too_large = || {
+        Error::new(
+            ErrorKind::InvalidData,
+            format!("larger than the limit of {limit} bytes"),
+        )
+    };
     if md.len() > limit {
         return Err(too_large());
     }
     let mut bytes = Vec::with_capacity(md.len() as usize);
-    std::fs::File::open(path)?.take(limit + 1).read_to_end(&mut bytes)?;
+    std::fs::File::open(path)?
+        .take(limit + 1)
+        .read_to_end(&mut bytes)?;
     if bytes.len() as u64 > limit {
         return Err(too_large()); // it grew while we read
     }
@@ -213,7 +229,10 @@ pub fn read_input_file(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
 
 fn load_mtl_file(path: &Path) -> Result<tobj::MTLLoadResult> {
     match read_input_file(path, MAX_MTL_BYTES) {
-        Ok(bytes) => load_mtl_text(&path.display().to_string(), &String::from_utf8_lossy(&bytes)),
+        Ok(bytes) => load_mtl_text(
+            &path.display().to_string(),
+            &String::from_utf8_lossy(&bytes),
+        ),
         Err(_) => Ok(Err(tobj::LoadError::OpenFileFailed)),
     }
 }
@@ -226,7 +245,9 @@ pub fn load_obj(path: &Path) -> Result<Scene> {
     };
     let text = String::from_utf8_lossy(&bytes);
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    parse_obj(&path.display().to_string(), &text, |mtl| load_mtl_file(&dir.join(mtl)))
+    parse_obj(&path.display().to_string(), &text, |mtl| {
+        load_mtl_file(&dir.join(mtl))
+    })
 }
 
 /// Parse OBJ text with, optionally, the text of the MTL file it refers to (whatever name
@@ -262,7 +283,6 @@ fn parse_obj(
         single_index: false,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let (models, mtl_result) = tobj::load_obj_buf(&mut text.as_bytes(), &options, load_mtl)
         .map_err(|e| Error(format!("cannot load scene '{name}': {e}")))?;
@@ -306,7 +326,7 @@ fn parse_obj(
                 ),
             }
         };
-        for face in mesh.indices.chunks_exact(3) {
+        for face in mesh.indices.as_chunks::<3>().0 {
             triangles.push(Triangle::new(
                 vertex(face[0])?,
                 vertex(face[1])?,
@@ -346,7 +366,10 @@ fn unknown_material_warnings(name: &str, text: &str, known: &[tobj::Material]) -
 }
 
 fn material_from_mtl(m: &tobj::Material) -> Material {
-    let kd = m.diffuse.map(Vec3::from).unwrap_or(Vec3::splat(DEFAULT_ALBEDO));
+    let kd = m
+        .diffuse
+        .map(Vec3::from)
+        .unwrap_or(Vec3::splat(DEFAULT_ALBEDO));
     let ke = m.emissive.map(Vec3::from).unwrap_or(Vec3::ZERO);
     Material::new(kd.clamp(Vec3::ZERO, Vec3::ONE), ke.max(Vec3::ZERO))
 }
@@ -366,12 +389,17 @@ fn check_lines(name: &str, text: &str) -> Result<()> {
             Some("v") => {
                 let coords: Vec<&str> = words.collect();
                 if coords.len() < 3 {
-                    bail!("{name}:{n}: vertex needs 3 coordinates, got {}", coords.len());
+                    bail!(
+                        "{name}:{n}: vertex needs 3 coordinates, got {}",
+                        coords.len()
+                    );
                 }
                 for w in coords.iter().take(3) {
                     match w.parse::<f32>() {
                         Ok(x) if x.is_finite() => {}
-                        Ok(_) => bail!("{name}:{n}: vertex coordinate '{w}' is not a finite number"),
+                        Ok(_) => {
+                            bail!("{name}:{n}: vertex coordinate '{w}' is not a finite number")
+                        }
                         Err(_) => bail!("{name}:{n}: bad vertex coordinate '{w}'"),
                     }
                 }
@@ -382,7 +410,10 @@ fn check_lines(name: &str, text: &str) -> Result<()> {
             Some("f") => {
                 let refs: Vec<&str> = words.collect();
                 if refs.len() < 3 {
-                    bail!("{name}:{n}: face has {} vertices; a face needs at least 3", refs.len());
+                    bail!(
+                        "{name}:{n}: face has {} vertices; a face needs at least 3",
+                        refs.len()
+                    );
                 }
                 for r in refs {
                     let mut parts = r.split('/');
@@ -391,11 +422,16 @@ fn check_lines(name: &str, text: &str) -> Result<()> {
                         .parse()
                         .map_err(|_| Error(format!("{name}:{n}: bad face index '{r}'")))?;
                     check_index(name, n, "face index", k, vertices, "vertices")?;
-                    for (what, count, kind) in [("texture coordinate index", texcoords, "texture coordinates"), ("normal index", normals, "normals")] {
+                    for (what, count, kind) in [
+                        ("texture coordinate index", texcoords, "texture coordinates"),
+                        ("normal index", normals, "normals"),
+                    ] {
                         match parts.next() {
                             None | Some("") => {}
                             Some(w) => {
-                                let k: i64 = w.parse().map_err(|_| Error(format!("{name}:{n}: bad {what} in '{r}'")))?;
+                                let k: i64 = w.parse().map_err(|_| {
+                                    Error(format!("{name}:{n}: bad {what} in '{r}'"))
+                                })?;
                                 check_index(name, n, what, k, count, kind)?;
                             }
                         }
@@ -414,7 +450,11 @@ fn check_index(name: &str, line: usize, what: &str, k: i64, count: i64, kind: &s
     if k == 0 {
         bail!("{name}:{line}: {what} 0 (OBJ indices start at 1)");
     }
-    let resolved = if k < 0 { count.saturating_add(k).saturating_add(1) } else { k };
+    let resolved = if k < 0 {
+        count.saturating_add(k).saturating_add(1)
+    } else {
+        k
+    };
     if resolved < 1 || resolved > count {
         bail!("{name}:{line}: {what} {k} is out of range ({count} {kind} so far)");
     }
@@ -442,14 +482,19 @@ fn parse_camera_hint(name: &str, text: &str) -> Result<Option<CameraHint>> {
         let (k, v) = kv.split_once('=').ok_or_else(bad)?;
         match k {
             "eye" => (hint.eye, has_eye) = (crate::cli::parse_vec3(v).map_err(|_| bad())?, true),
-            "target" => (hint.target, has_target) = (crate::cli::parse_vec3(v).map_err(|_| bad())?, true),
+            "target" => {
+                (hint.target, has_target) = (crate::cli::parse_vec3(v).map_err(|_| bad())?, true)
+            }
             "up" => hint.up = crate::cli::parse_vec3(v).map_err(|_| bad())?,
             "fov" => hint.fov = v.parse().map_err(|_| bad())?,
             _ => return Err(bad()),
         }
     }
     if !(has_eye && has_target) {
-        bail!("{name}:{}: the camera line needs at least eye=X,Y,Z and target=X,Y,Z", n + 1);
+        bail!(
+            "{name}:{}: the camera line needs at least eye=X,Y,Z and target=X,Y,Z",
+            n + 1
+        );
     }
     Ok(Some(hint))
 }

@@ -28,9 +28,16 @@ pub fn default_scene_path() -> PathBuf {
 /// Load the scene named on the command line: an OBJ file, or a built-in scene's name
 /// (see `generate`); the Cornell box by default. Prints the scene's warnings.
 pub fn load_scene(args: &SceneArgs) -> Result<Scene> {
-    let path = args.scene.clone().unwrap_or_else(|| PathBuf::from("cornell-box"));
+    let path = args
+        .scene
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("cornell-box"));
     let name = path.to_string_lossy();
-    let scene = if path.is_file() || path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")) {
+    let scene = if path.is_file()
+        || path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("obj"))
+    {
         load_obj(&path)?
     } else if name == "cornell-box" {
         crate::scene::cornell_box()?
@@ -101,11 +108,17 @@ pub fn camera_pose(args: &SceneArgs, scene: &Scene) -> Result<CameraPose> {
     if !(fov > 0.0 && fov < 180.0) {
         bail!("--fov must be in (0, 180) degrees, got {fov}");
     }
-    let target = args.target.or(hint.map(|h| h.target)).unwrap_or(0.5 * (lo + hi));
+    let target = args
+        .target
+        .or(hint.map(|h| h.target))
+        .unwrap_or(0.5 * (lo + hi));
     let up = args.up.or(hint.map(|h| h.up)).unwrap_or(args.up_axis.up());
     let eye = args.eye.or(hint.map(|h| h.eye)).unwrap_or_else(|| {
         let radius = 0.5 * (hi - lo).length();
-        let (az, el) = (THREE_QUARTER_AZIMUTH_DEG.to_radians(), THREE_QUARTER_ELEVATION_DEG.to_radians());
+        let (az, el) = (
+            THREE_QUARTER_AZIMUTH_DEG.to_radians(),
+            THREE_QUARTER_ELEVATION_DEG.to_radians(),
+        );
         let front = args.up_axis.front();
         let right = front.cross(args.up_axis.up()).normalize() * -1.0;
         let dir = (front * az.cos() + right * az.sin()) * el.cos() + args.up_axis.up() * el.sin();
@@ -121,7 +134,12 @@ pub fn camera_pose(args: &SceneArgs, scene: &Scene) -> Result<CameraPose> {
     if up.length() == 0.0 || forward.normalize().cross(up.normalize()).length() < 1e-6 {
         bail!("--up must not be zero or parallel to the view direction (target - eye)");
     }
-    Ok(CameraPose { eye, target, up, fov })
+    Ok(CameraPose {
+        eye,
+        target,
+        up,
+        fov,
+    })
 }
 
 /// Check the image size against what one accumulation buffer can hold.
@@ -161,7 +179,10 @@ pub fn frame_params(args: &SceneArgs, kernel: &KernelArgs, scene: &Scene) -> Res
         bail!("--max-depth must be at least 1");
     }
     if kernel.sky.min_element() < 0.0 || kernel.sky.max_element() > crate::scene::MAX_RADIANCE {
-        bail!("--sky must be between 0 and {:e} per channel", crate::scene::MAX_RADIANCE);
+        bail!(
+            "--sky must be between 0 and {:e} per channel",
+            crate::scene::MAX_RADIANCE
+        );
     }
     let needs_lights = kernel.integrator != Integrator::Ao;
     if needs_lights && scene.lights.is_empty() {
@@ -175,7 +196,10 @@ pub fn frame_params(args: &SceneArgs, kernel: &KernelArgs, scene: &Scene) -> Res
         eprintln!("warning: the scene has no emitters; only --sky lights it");
     }
     if kernel.candidates == 0 || kernel.candidates > MAX_CANDIDATES {
-        bail!("--candidates must be between 1 and {MAX_CANDIDATES}, got {}", kernel.candidates);
+        bail!(
+            "--candidates must be between 1 and {MAX_CANDIDATES}, got {}",
+            kernel.candidates
+        );
     }
     if !(kernel.temporal_cap > 0.0 && kernel.temporal_cap.is_finite()) {
         bail!("--temporal-cap must be a positive number");
@@ -186,7 +210,9 @@ pub fn frame_params(args: &SceneArgs, kernel: &KernelArgs, scene: &Scene) -> Res
             kernels::integrators::restir::MAX_SPATIAL_NEIGHBOURS
         );
     }
-    let spatial_radius = kernel.spatial_radius.unwrap_or_else(|| default_spatial_radius(args.width, args.height));
+    let spatial_radius = kernel
+        .spatial_radius
+        .unwrap_or_else(|| default_spatial_radius(args.width, args.height));
     if !(spatial_radius >= 1.0 && spatial_radius.is_finite()) {
         bail!("--spatial-radius must be at least 1 pixel");
     }
@@ -254,7 +280,13 @@ pub fn orbit_camera(args: &SceneArgs, scene: &Scene, degrees: f32) -> Result<Cam
     let pose = camera_pose(args, scene)?;
     let rot = glam::Quat::from_axis_angle(pose.up.normalize(), degrees.to_radians());
     let eye = pose.target + rot * (pose.eye - pose.target);
-    Ok(look_at(eye, pose.target, pose.up, pose.fov, args.width as f32 / args.height as f32))
+    Ok(look_at(
+        eye,
+        pose.target,
+        pose.up,
+        pose.fov,
+        args.width as f32 / args.height as f32,
+    ))
 }
 
 /// The fuzzing harness: bytes → OBJ (and MTL after the first 0xFF byte) → scene and BVH →
@@ -292,7 +324,11 @@ pub fn load_and_render_bytes(data: &[u8]) -> Result<crate::output::Image> {
         ao_distance: scene.extent().max(1e-6),
         ..Default::default()
     };
-    let integrator = if scene.lights.is_empty() { crate::cli::Integrator::Ao } else { crate::cli::Integrator::Nee };
+    let integrator = if scene.lights.is_empty() {
+        crate::cli::Integrator::Ao
+    } else {
+        crate::cli::Integrator::Nee
+    };
     let mut cpu = crate::cpu::CpuBackend::new(&scene, 4, 4);
     let (image, _) = crate::render::render(&mut cpu, integrator, &params, 1, 1, false)?;
     if image.pixels.iter().any(|p| !p.is_finite()) {

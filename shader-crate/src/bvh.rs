@@ -77,7 +77,12 @@ pub fn brute_force_closest_hit(triangles: &[Triangle], ray: &Ray, t_max: f32) ->
     let mut i = 0;
     while i < triangles.len() {
         if let Some((t, b1, b2)) = tester.intersect(&triangles[i], 0.0, hit.t) {
-            hit = Hit { t, b1, b2, prim: i as u32 };
+            hit = Hit {
+                t,
+                b1,
+                b2,
+                prim: i as u32,
+            };
         }
         i += 1;
     }
@@ -280,8 +285,19 @@ fn cwbvh_node_hits(node: &CwBvhNode, origin: Vec3, inv_dir: Vec3, oct_inv: u32, 
     let (m, n) = (node.child_min_x, node.child_max_x);
     let (k, l) = (node.child_min_y, node.child_max_y);
     let (i, j) = (node.child_min_z, node.child_max_z);
-    cwbvh_half_hits(&ray, node.child_meta[0], (m[0], n[0]), (k[0], l[0]), (i[0], j[0]))
-        | cwbvh_half_hits(&ray, node.child_meta[1], (m[1], n[1]), (k[1], l[1]), (i[1], j[1]))
+    cwbvh_half_hits(
+        &ray,
+        node.child_meta[0],
+        (m[0], n[0]),
+        (k[0], l[0]),
+        (i[0], j[0]),
+    ) | cwbvh_half_hits(
+        &ray,
+        node.child_meta[1],
+        (m[1], n[1]),
+        (k[1], l[1]),
+        (i[1], j[1]),
+    )
 }
 
 /// Stack traversal of obvhs's CWBVH (Ylitie, Karras, Laine 2017, Algorithm 1): a stack of
@@ -317,12 +333,10 @@ pub fn cwbvh_traverse(
             let slot = (slot_bit - 24) ^ oct_inv;
             let relative = (group_bits & 0xff & !(0xffff_ffffu32 << slot)).count_ones();
             let child = group_base + relative;
-            if group_bits & 0xff00_0000 != 0 {
-                if sp < CWBVH_STACK {
-                    stack_base[sp] = group_base;
-                    stack_bits[sp] = group_bits;
-                    sp += 1;
-                }
+            if group_bits & 0xff00_0000 != 0 && sp < CWBVH_STACK {
+                stack_base[sp] = group_base;
+                stack_bits[sp] = group_bits;
+                sp += 1;
             }
             let node = nodes[child as usize];
             let hits = cwbvh_node_hits(&node, ray.origin, inv_dir, oct_inv, hit.t);

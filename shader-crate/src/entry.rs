@@ -8,8 +8,8 @@
 //! 3 output reservoirs, 4 previous frame's reservoirs.
 use crate::bvh::{BvhNode, Scene};
 use crate::glam::{UVec3, Vec4};
-use crate::present::{display_colour, fullscreen_triangle, PresentParams};
 use crate::integrators::{ao, path, restir, PixelResult};
+use crate::present::{display_colour, fullscreen_triangle, PresentParams};
 use crate::reservoir::Reservoir;
 use crate::types::{FrameParams, GBufferTexel, Light, Material, Triangle};
 use spirv_std::spirv;
@@ -32,7 +32,12 @@ macro_rules! image_kernel {
             if id.x >= params.width || id.y >= params.height {
                 return;
             }
-            let scene = Scene { triangles, materials, nodes, lights };
+            let scene = Scene {
+                triangles,
+                materials,
+                nodes,
+                lights,
+            };
             // A fn item or closure called in place: monomorphised, no indirect call.
             let r: PixelResult = ($pixel)(&scene, params, id.x, id.y);
             let i = (id.y * params.width + id.x) as usize;
@@ -43,10 +48,18 @@ macro_rules! image_kernel {
 }
 
 image_kernel!(ao_main, ao::render_pixel);
-image_kernel!(pt_main, |s: &Scene, p: &FrameParams, x, y| path::render_pixel(s, p, x, y, path::BSDF));
-image_kernel!(nee_main, |s: &Scene, p: &FrameParams, x, y| path::render_pixel(s, p, x, y, path::NEE));
-image_kernel!(mis_main, |s: &Scene, p: &FrameParams, x, y| path::render_pixel(s, p, x, y, path::MIS));
-image_kernel!(ris_main, |s: &Scene, p: &FrameParams, x, y| path::render_pixel(s, p, x, y, path::RIS));
+image_kernel!(pt_main, |s: &Scene, p: &FrameParams, x, y| {
+    path::render_pixel(s, p, x, y, path::BSDF)
+});
+image_kernel!(nee_main, |s: &Scene, p: &FrameParams, x, y| {
+    path::render_pixel(s, p, x, y, path::NEE)
+});
+image_kernel!(mis_main, |s: &Scene, p: &FrameParams, x, y| {
+    path::render_pixel(s, p, x, y, path::MIS)
+});
+image_kernel!(ris_main, |s: &Scene, p: &FrameParams, x, y| {
+    path::render_pixel(s, p, x, y, path::RIS)
+});
 
 /// Declares one ReSTIR pass: the scene bindings of set 0 and the ReSTIR buffers of set 1
 /// are in scope under the names below; `$body` computes and stores the pixel's result.
@@ -82,22 +95,83 @@ macro_rules! restir_kernel {
     };
 }
 
-restir_kernel!(restir_primary, |scene, params, x, y, i, rays, g_cur, g_prev, res_in, res_out, res_prev, accum| {
+restir_kernel!(restir_primary, |scene,
+                                params,
+                                x,
+                                y,
+                                i,
+                                rays,
+                                g_cur,
+                                g_prev,
+                                res_in,
+                                res_out,
+                                res_prev,
+                                accum| {
     g_cur[i] = restir::primary_hit(&scene, params, x, y, &mut rays);
 });
-restir_kernel!(restir_initial, |scene, params, x, y, i, rays, g_cur, g_prev, res_in, res_out, res_prev, accum| {
+restir_kernel!(restir_initial, |scene,
+                                params,
+                                x,
+                                y,
+                                i,
+                                rays,
+                                g_cur,
+                                g_prev,
+                                res_in,
+                                res_out,
+                                res_prev,
+                                accum| {
     res_out[i] = restir::initial_pass(&scene, params, &g_cur[i], i as u32, &mut rays);
 });
-restir_kernel!(restir_temporal, |scene, params, x, y, i, rays, g_cur, g_prev, res_in, res_out, res_prev, accum| {
-    res_out[i] = restir::temporal_pass(&scene, params, g_cur, g_prev, res_in, res_prev, x, y, &mut rays);
+restir_kernel!(restir_temporal, |scene,
+                                 params,
+                                 x,
+                                 y,
+                                 i,
+                                 rays,
+                                 g_cur,
+                                 g_prev,
+                                 res_in,
+                                 res_out,
+                                 res_prev,
+                                 accum| {
+    res_out[i] = restir::temporal_pass(
+        &scene, params, g_cur, g_prev, res_in, res_prev, x, y, &mut rays,
+    );
 });
-restir_kernel!(restir_spatial, |scene, params, x, y, i, rays, g_cur, g_prev, res_in, res_out, res_prev, accum| {
+restir_kernel!(restir_spatial, |scene,
+                                params,
+                                x,
+                                y,
+                                i,
+                                rays,
+                                g_cur,
+                                g_prev,
+                                res_in,
+                                res_out,
+                                res_prev,
+                                accum| {
     res_out[i] = restir::spatial_pass(&scene, params, g_cur, res_in, x, y, &mut rays);
 });
-restir_kernel!(restir_shade, |scene, params, x, y, i, rays, g_cur, g_prev, res_in, res_out, res_prev, accum| {
+restir_kernel!(restir_shade, |scene,
+                              params,
+                              x,
+                              y,
+                              i,
+                              rays,
+                              g_cur,
+                              g_prev,
+                              res_in,
+                              res_out,
+                              res_prev,
+                              accum| {
     let l = restir::shade_pass(&scene, params, &g_cur[i], &res_in[i], i as u32, &mut rays);
     // Non-finite results are dropped, as in every integrator's sample loop.
-    let l = if l.is_finite() { l } else { crate::glam::Vec3::ZERO };
+    let l = if l.is_finite() {
+        l
+    } else {
+        crate::glam::Vec3::ZERO
+    };
     accum[i] += l.extend(1.0);
 });
 

@@ -74,7 +74,11 @@ mod tests {
         for _ in 0..100_000 {
             x = crate::rng::pcg_hash(x);
             let y = crate::rng::pcg_hash(x ^ 0x5bd1_e995);
-            assert_eq!(super::mul_hi(x, y), ((x as u64 * y as u64) >> 32) as u32, "{x} {y}");
+            assert_eq!(
+                super::mul_hi(x, y),
+                ((x as u64 * y as u64) >> 32) as u32,
+                "{x} {y}"
+            );
         }
         assert_eq!(super::mul_hi(u32::MAX, u32::MAX), u32::MAX - 1);
         assert_eq!(super::mul_hi(u32::MAX, 7), 6);

@@ -16,7 +16,11 @@ pub struct PresentParams {
 
 /// Displayed colour of an accumulation texel (rgb = sum, a = sample count).
 pub fn display_colour(acc: Vec4, params: &PresentParams) -> Vec3 {
-    let mean = if acc.w > 0.0 { acc.truncate() / acc.w } else { Vec3::ZERO };
+    let mean = if acc.w > 0.0 {
+        acc.truncate() / acc.w
+    } else {
+        Vec3::ZERO
+    };
     let c = mean * params.exposure;
     let c = if params.tonemap == 1 {
         let l = crate::math::luminance(c);
@@ -40,11 +44,20 @@ mod tests {
 
     #[test]
     fn mean_exposure_and_clamp() {
-        let p = PresentParams { width: 1, height: 1, exposure: 2.0, tonemap: 0 };
+        let p = PresentParams {
+            width: 1,
+            height: 1,
+            exposure: 2.0,
+            tonemap: 0,
+        };
         let c = display_colour(Vec4::new(0.5, 1.0, 4.0, 4.0), &p);
         assert_eq!(c, Vec3::new(0.25, 0.5, 1.0));
         assert_eq!(display_colour(Vec4::ZERO, &p), Vec3::ZERO);
-        let r = PresentParams { tonemap: 1, exposure: 1.0, ..p };
+        let r = PresentParams {
+            tonemap: 1,
+            exposure: 1.0,
+            ..p
+        };
         let c = display_colour(Vec4::new(1.0, 1.0, 1.0, 1.0), &r);
         assert!((c - Vec3::splat(0.5)).length() < 1e-6);
     }
@@ -52,8 +65,14 @@ mod tests {
     #[test]
     fn triangle_covers_the_screen() {
         let v: [Vec4; 3] = core::array::from_fn(|i| fullscreen_triangle(i as u32));
-        assert_eq!(v[0].truncate().truncate(), crate::glam::Vec2::new(-1.0, 1.0));
+        assert_eq!(
+            v[0].truncate().truncate(),
+            crate::glam::Vec2::new(-1.0, 1.0)
+        );
         assert_eq!(v[1].truncate().truncate(), crate::glam::Vec2::new(3.0, 1.0));
-        assert_eq!(v[2].truncate().truncate(), crate::glam::Vec2::new(-1.0, -3.0));
+        assert_eq!(
+            v[2].truncate().truncate(),
+            crate::glam::Vec2::new(-1.0, -3.0)
+        );
     }
 }

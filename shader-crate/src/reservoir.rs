@@ -35,12 +35,30 @@ impl Reservoir {
     /// Stream one candidate of resampling weight `weight` through the reservoir: it
     /// replaces the kept sample with probability weight / w_sum (after adding it). `u` is
     /// a uniform number in [0, 1). Returns whether it was kept.
-    pub fn update(&mut self, triangle: u32, b1: f32, b2: f32, weight: f32, target_pdf: f32, u: f32) -> bool {
+    pub fn update(
+        &mut self,
+        triangle: u32,
+        b1: f32,
+        b2: f32,
+        weight: f32,
+        target_pdf: f32,
+        u: f32,
+    ) -> bool {
         self.m += 1.0;
         self.add(triangle, b1, b2, weight, target_pdf, u)
     }
 
-    fn add(&mut self, triangle: u32, b1: f32, b2: f32, weight: f32, target_pdf: f32, u: f32) -> bool {
+    // `!(weight > 0.0)` on purpose: a NaN weight is refused along with zero and negatives.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    fn add(
+        &mut self,
+        triangle: u32,
+        b1: f32,
+        b2: f32,
+        weight: f32,
+        target_pdf: f32,
+        u: f32,
+    ) -> bool {
         if !(weight > 0.0) {
             return false;
         }
@@ -64,7 +82,14 @@ impl Reservoir {
             return false;
         }
         let weight = target_pdf_here * other.w * other.m;
-        self.add(other.triangle, other.b1, other.b2, weight, target_pdf_here, u)
+        self.add(
+            other.triangle,
+            other.b1,
+            other.b2,
+            weight,
+            target_pdf_here,
+            u,
+        )
     }
 
     /// W = w_sum / (M · p̂(y)) — the biased-by-default 1/M normalisation. `normaliser`
@@ -101,7 +126,10 @@ mod tests {
             assert!((s.w_sum - 0.8).abs() < 1e-6 && s.m == 2.0);
         }
         let p = kept_p2 as f64 / 100_000.0;
-        assert!((p - 0.75).abs() < 5.0 * (0.75f64 * 0.25 / 100_000.0).sqrt(), "{p}");
+        assert!(
+            (p - 0.75).abs() < 5.0 * (0.75f64 * 0.25 / 100_000.0).sqrt(),
+            "{p}"
+        );
     }
 
     #[test]

@@ -49,7 +49,11 @@ mod tests {
                 Vec3::new(0.0, 0.0, if i == 0 { 1.0 } else { -1.0 })
             } else {
                 let d = cosine_hemisphere(rng.next_f32(), rng.next_f32());
-                if rng.next_f32() < 0.5 { d } else { -d }
+                if rng.next_f32() < 0.5 {
+                    d
+                } else {
+                    -d
+                }
             }
             .normalize();
             let (t, b) = orthonormal_basis(n);

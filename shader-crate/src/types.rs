@@ -208,7 +208,7 @@ const _: () = {
     assert!(core::mem::size_of::<FrameParams>() == 224);
     assert!(core::mem::size_of::<GBufferTexel>() == 48);
     assert!(core::mem::size_of::<Light>() == 16);
-    assert!(core::mem::size_of::<FrameParams>() % 16 == 0);
+    assert!(core::mem::size_of::<FrameParams>().is_multiple_of(16));
 };
 
 /// Binary BVH node, 32 bytes. Interior: `count == 0` and the children are nodes `first` and

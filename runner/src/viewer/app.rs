@@ -33,7 +33,10 @@ pub fn check_args(args: &ViewArgs) -> Result<()> {
         bail!("`view` draws with a Vulkan device (a GPU, or lavapipe); --backend cpu is for `render` and `bench`");
     }
     if !(args.exposure.is_finite() && args.exposure > 0.0) {
-        bail!("--exposure must be a positive number, got {}", args.exposure);
+        bail!(
+            "--exposure must be a positive number, got {}",
+            args.exposure
+        );
     }
     if let Some(path) = &args.screenshot {
         if args.exit_after.is_none() {
@@ -55,7 +58,9 @@ fn without_source_location(message: &str) -> &str {
 
 /// Open the window and run until it closes (or `--exit-after` frames).
 pub fn run(args: &ViewArgs, scene: Scene) -> Result<()> {
-    let has_display = ["DISPLAY", "WAYLAND_DISPLAY"].iter().any(|v| std::env::var_os(v).is_some_and(|d| !d.is_empty()));
+    let has_display = ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|d| !d.is_empty()));
     if !has_display {
         bail!("`view` needs a display and neither DISPLAY nor WAYLAND_DISPLAY is set; `render` needs none");
     }
@@ -74,7 +79,11 @@ pub fn run(args: &ViewArgs, scene: Scene) -> Result<()> {
         scene,
         params,
         camera,
-        state: ViewState::new(args.kernel.integrator, params.restir_flags, params.spatial_passes),
+        state: ViewState::new(
+            args.kernel.integrator,
+            params.restir_flags,
+            params.spatial_passes,
+        ),
         held: Held::default(),
         drag: None,
         gfx: None,
@@ -88,7 +97,9 @@ pub fn run(args: &ViewArgs, scene: Scene) -> Result<()> {
         saved: 0,
         frame_times: Vec::new(),
     };
-    event_loop.run_app(&mut app).map_err(|e| Error(format!("window event loop failed: {e}")))?;
+    event_loop
+        .run_app(&mut app)
+        .map_err(|e| Error(format!("window event loop failed: {e}")))?;
     if !app.frame_times.is_empty() {
         let median = |mut v: Vec<f64>| {
             v.sort_by(|a, b| a.total_cmp(b));
@@ -182,7 +193,11 @@ impl App {
             .with_title("runner view")
             .with_inner_size(PhysicalSize::new(w, h))
             .with_resizable(false);
-        let window = Arc::new(event_loop.create_window(attrs).map_err(|e| Error(format!("cannot create a window: {e}")))?);
+        let window = Arc::new(
+            event_loop
+                .create_window(attrs)
+                .map_err(|e| Error(format!("cannot create a window: {e}")))?,
+        );
         let (adapter, pending) = present::open(&window, event_loop, self.copy)?;
         let ctx = GpuContext::new(&adapter)?;
         let presenter = pending.finish(&adapter, &ctx.device, &window, w, h)?;
@@ -194,8 +209,14 @@ impl App {
             device.create_shader_module_passthrough(wgpu::ShaderModuleDescriptorPassthrough {
                 label: Some("present"),
                 entry_points: Cow::Owned(vec![
-                    wgpu::PassthroughShaderEntryPoint { name: Cow::Borrowed("entry::present_vs"), workgroup_size: (0, 0, 0) },
-                    wgpu::PassthroughShaderEntryPoint { name: Cow::Borrowed("entry::present_fs"), workgroup_size: (0, 0, 0) },
+                    wgpu::PassthroughShaderEntryPoint {
+                        name: Cow::Borrowed("entry::present_vs"),
+                        workgroup_size: (0, 0, 0),
+                    },
+                    wgpu::PassthroughShaderEntryPoint {
+                        name: Cow::Borrowed("entry::present_fs"),
+                        workgroup_size: (0, 0, 0),
+                    },
                 ]),
                 spirv: Some(Cow::Owned(spirv_words())),
                 ..Default::default()
@@ -239,23 +260,41 @@ impl App {
             mapped_at_creation: false,
         });
         let backend = GpuBackend::new(ctx, &self.scene, w, h)?;
-        let present_group = backend.context().device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("present"),
-            layout: &layout,
-            entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: present_params.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: backend.accumulation_buffer().as_entire_binding() },
-            ],
-        });
+        let present_group =
+            backend
+                .context()
+                .device
+                .create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("present"),
+                    layout: &layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: present_params.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: backend.accumulation_buffer().as_entire_binding(),
+                        },
+                    ],
+                });
         eprintln!("viewer: {}, {}", backend.describe(), presenter.describe());
-        Ok(Gfx { window, presenter, backend, present, present_params, present_group })
+        Ok(Gfx {
+            window,
+            presenter,
+            backend,
+            present,
+            present_params,
+            present_group,
+        })
     }
 
     /// One frame: integrate, present, update the title, and save when asked.
     fn frame(&mut self) -> Result<()> {
         let wall_ms = self.last_frame.elapsed().as_secs_f64() * 1e3;
         if self.state.frame > 0 {
-            self.frame_times.push((self.gpu_ms, self.present_ms, wall_ms));
+            self.frame_times
+                .push((self.gpu_ms, self.present_ms, wall_ms));
         }
         let dt = self.last_frame.elapsed().as_secs_f32();
         self.last_frame = Instant::now();
@@ -270,7 +309,11 @@ impl App {
         base.restir_flags = self.state.restir_flags;
         base.spatial_passes = self.state.spatial_passes;
         self.params.camera = base.camera;
-        let n = if self.restart { 0 } else { self.state.accumulated };
+        let n = if self.restart {
+            0
+        } else {
+            self.state.accumulated
+        };
         // ReSTIR's frame index is the viewer's frame count, which never resets, so a moving
         // camera draws new numbers every frame (a still camera from the start renders
         // exactly `render`'s frames). The other integrators count samples of the
@@ -291,32 +334,43 @@ impl App {
         // While the GPU integrates, the CPU puts the previous frame in the window (copying).
         gfx.backend.submit_pass(self.state.integrator, &p)?;
         let present_start = Instant::now();
-        gfx.presenter.show_previous(&gfx.backend.context().device, &gfx.window)?;
+        gfx.presenter
+            .show_previous(&gfx.backend.context().device, &gfx.window)?;
         let mut present_ms = present_start.elapsed().as_secs_f64() * 1e3;
         self.gpu_ms = gfx.backend.finish_pass()?;
         self.state.frame_done(self.restart);
         self.restart = false;
 
         let ctx = gfx.backend.context();
-        let pp = PresentParams { width: w, height: h, exposure: self.args.exposure, tonemap: 0 };
-        ctx.queue.write_buffer(&gfx.present_params, 0, bytemuck::bytes_of(&pp));
+        let pp = PresentParams {
+            width: w,
+            height: h,
+            exposure: self.args.exposure,
+            tonemap: 0,
+        };
+        ctx.queue
+            .write_buffer(&gfx.present_params, 0, bytemuck::bytes_of(&pp));
         let (pipeline, group) = (&gfx.present, &gfx.present_group);
         let present_start = Instant::now();
-        gfx.presenter.present(&ctx.device, &ctx.queue, &gfx.window, |encoder, view| {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("present"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
-                })],
-                ..Default::default()
-            });
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, group, &[]);
-            pass.draw(0..3, 0..1);
-        })?;
+        gfx.presenter
+            .present(&ctx.device, &ctx.queue, &gfx.window, |encoder, view| {
+                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("present"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    ..Default::default()
+                });
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, group, &[]);
+                pass.draw(0..3, 0..1);
+            })?;
         present_ms += present_start.elapsed().as_secs_f64() * 1e3;
         self.present_ms = present_ms;
 
@@ -337,10 +391,17 @@ impl App {
                 }
             };
             write_image(&path, &image)?;
-            if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+            if path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+            {
                 write_image(&path.with_extension("exr"), &image)?;
             }
-            eprintln!("saved {} ({} frames accumulated)", path.display(), self.state.accumulated);
+            eprintln!(
+                "saved {} ({} frames accumulated)",
+                path.display(),
+                self.state.accumulated
+            );
         }
         if done {
             self.state.quit = true;
@@ -366,7 +427,9 @@ impl ApplicationHandler for App {
         match event {
             WindowEvent::CloseRequested => event_loop.exit(),
             WindowEvent::KeyboardInput { event, .. } => {
-                let PhysicalKey::Code(code) = event.physical_key else { return };
+                let PhysicalKey::Code(code) = event.physical_key else {
+                    return;
+                };
                 let Some(key) = key_of(code) else { return };
                 let down = event.state == ElementState::Pressed;
                 if !self.held.set(key, down) && down && !event.repeat {
@@ -375,7 +438,11 @@ impl ApplicationHandler for App {
                     }
                 }
             }
-            WindowEvent::MouseInput { state, button: MouseButton::Left, .. } => {
+            WindowEvent::MouseInput {
+                state,
+                button: MouseButton::Left,
+                ..
+            } => {
                 if state == ElementState::Released {
                     self.drag = None;
                 } else {
@@ -384,7 +451,11 @@ impl ApplicationHandler for App {
             }
             WindowEvent::CursorMoved { position, .. } => {
                 if let Some((x, y)) = self.drag {
-                    if x.is_finite() && self.camera.look((position.x - x) as f32, (position.y - y) as f32) {
+                    if x.is_finite()
+                        && self
+                            .camera
+                            .look((position.x - x) as f32, (position.y - y) as f32)
+                    {
                         self.restart = true;
                     }
                     self.drag = Some((position.x, position.y));

@@ -38,12 +38,20 @@ pub enum Action {
 }
 
 /// Integrators in number-key order: 1 ao, 2 pt, 3 nee, 4 mis, 5 ris, 6 restir.
-pub const NUMBER_KEYS: [Integrator; 6] =
-    [Integrator::Ao, Integrator::Pt, Integrator::Nee, Integrator::Mis, Integrator::Ris, Integrator::Restir];
+pub const NUMBER_KEYS: [Integrator; 6] = [
+    Integrator::Ao,
+    Integrator::Pt,
+    Integrator::Nee,
+    Integrator::Mis,
+    Integrator::Ris,
+    Integrator::Restir,
+];
 
 pub fn action_for(key: Key) -> Option<Action> {
     match key {
-        Key::Digit(d) if (1..=6).contains(&d) => Some(Action::SetIntegrator(NUMBER_KEYS[d as usize - 1])),
+        Key::Digit(d) if (1..=6).contains(&d) => {
+            Some(Action::SetIntegrator(NUMBER_KEYS[d as usize - 1]))
+        }
         Key::T => Some(Action::ToggleTemporal),
         Key::B => Some(Action::ToggleUnbiased),
         Key::PlusSpatial => Some(Action::SpatialPasses(1)),
@@ -109,7 +117,15 @@ impl FlyCamera {
         let flat = d - up * d.dot(up);
         let yaw = flat.dot(right0).atan2(flat.dot(fwd0));
         let speed = (0.25 * scene_extent).max(1e-3);
-        Self { position: eye, yaw, pitch, up, fov, speed, home: (eye, yaw, pitch, speed) }
+        Self {
+            position: eye,
+            yaw,
+            pitch,
+            up,
+            fov,
+            speed,
+            home: (eye, yaw, pitch, speed),
+        }
     }
 
     /// A reference forward and right direction orthogonal to `up`.
@@ -127,7 +143,13 @@ impl FlyCamera {
     }
 
     pub fn camera(&self, aspect: f32) -> Camera {
-        look_at(self.position, self.position + self.forward(), self.up, self.fov, aspect)
+        look_at(
+            self.position,
+            self.position + self.forward(),
+            self.up,
+            self.fov,
+            aspect,
+        )
     }
 
     /// Move for `dt` seconds with the held keys; true when the camera moved.
@@ -135,7 +157,9 @@ impl FlyCamera {
         let f = self.forward();
         let r = f.cross(self.up).normalize();
         let axis = |a: bool, b: bool| (a as i32 - b as i32) as f32;
-        let v = f * axis(held.forward, held.back) + r * axis(held.right, held.left) + self.up * axis(held.up, held.down);
+        let v = f * axis(held.forward, held.back)
+            + r * axis(held.right, held.left)
+            + self.up * axis(held.up, held.down);
         if v == Vec3::ZERO || dt <= 0.0 {
             return false;
         }
@@ -244,9 +268,17 @@ impl ViewState {
         let restir = if self.integrator == Integrator::Restir {
             format!(
                 " [temporal {}, spatial x{}, {}]",
-                if self.restir_flags & RESTIR_TEMPORAL != 0 { "on" } else { "off" },
+                if self.restir_flags & RESTIR_TEMPORAL != 0 {
+                    "on"
+                } else {
+                    "off"
+                },
                 self.spatial_passes,
-                if self.restir_flags & RESTIR_UNBIASED != 0 { "unbiased" } else { "biased" }
+                if self.restir_flags & RESTIR_UNBIASED != 0 {
+                    "unbiased"
+                } else {
+                    "biased"
+                }
             )
         } else {
             String::new()
@@ -263,13 +295,23 @@ mod tests {
     use super::*;
 
     fn cam() -> FlyCamera {
-        FlyCamera::new(Vec3::new(0.0, 1.0, 5.0), Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 45.0, 10.0)
+        FlyCamera::new(
+            Vec3::new(0.0, 1.0, 5.0),
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::Y,
+            45.0,
+            10.0,
+        )
     }
 
     #[test]
     fn starts_looking_at_the_target() {
         let c = cam();
-        assert!((c.forward() - Vec3::new(0.0, 0.0, -1.0)).length() < 1e-5, "{}", c.forward());
+        assert!(
+            (c.forward() - Vec3::new(0.0, 0.0, -1.0)).length() < 1e-5,
+            "{}",
+            c.forward()
+        );
         let tilted = FlyCamera::new(Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), Vec3::Y, 45.0, 1.0);
         assert!((tilted.forward() - Vec3::new(1.0, 1.0, 0.0).normalize()).length() < 1e-5);
     }
@@ -281,17 +323,27 @@ mod tests {
         assert!(!c.fly(&held, 0.1), "no key, no motion");
         held.set(Key::W, true);
         assert!(c.fly(&held, 0.5));
-        assert!((c.position - Vec3::new(0.0, 1.0, 5.0 - 0.5 * 2.5)).length() < 1e-5, "{}", c.position);
+        assert!(
+            (c.position - Vec3::new(0.0, 1.0, 5.0 - 0.5 * 2.5)).length() < 1e-5,
+            "{}",
+            c.position
+        );
         held.set(Key::W, false);
         held.set(Key::D, true);
         let before = c.position;
         c.fly(&held, 1.0);
-        assert!((c.position - before - Vec3::new(2.5, 0.0, 0.0)).length() < 1e-4, "right is +x");
+        assert!(
+            (c.position - before - Vec3::new(2.5, 0.0, 0.0)).length() < 1e-4,
+            "right is +x"
+        );
         held = Held::default();
         held.set(Key::E, true);
         let before = c.position;
         c.fly(&held, 1.0);
-        assert!((c.position - before - Vec3::new(0.0, 2.5, 0.0)).length() < 1e-4, "E is up");
+        assert!(
+            (c.position - before - Vec3::new(0.0, 2.5, 0.0)).length() < 1e-4,
+            "E is up"
+        );
     }
 
     #[test]
@@ -299,7 +351,11 @@ mod tests {
         let mut c = cam();
         let home = c;
         assert!(c.look(100.0, 0.0));
-        assert!(c.forward().x > 0.3, "drag right turns right: {}", c.forward());
+        assert!(
+            c.forward().x > 0.3,
+            "drag right turns right: {}",
+            c.forward()
+        );
         c.look(0.0, -10_000.0);
         assert!(c.pitch <= 1.55, "pitch is clamped");
         c.scroll(1.0);
@@ -317,19 +373,29 @@ mod tests {
         s.frame_done(false);
         s.frame_done(false);
         assert_eq!((s.accumulated, s.frame), (3, 3));
-        assert!(!s.apply(action_for(Key::Digit(3)).unwrap(), &mut c), "same integrator: keep accumulating");
+        assert!(
+            !s.apply(action_for(Key::Digit(3)).unwrap(), &mut c),
+            "same integrator: keep accumulating"
+        );
         assert!(s.apply(action_for(Key::Digit(6)).unwrap(), &mut c));
         assert_eq!(s.integrator, Integrator::Restir);
         assert!(s.apply(action_for(Key::T).unwrap(), &mut c));
         assert_eq!(s.restir_flags & RESTIR_TEMPORAL, 0);
         assert!(s.apply(action_for(Key::B).unwrap(), &mut c));
         assert_ne!(s.restir_flags & RESTIR_UNBIASED, 0);
-        assert!(s.title(64, 32, 1.5).contains("temporal off") && s.title(64, 32, 1.5).contains("unbiased"));
+        assert!(
+            s.title(64, 32, 1.5).contains("temporal off")
+                && s.title(64, 32, 1.5).contains("unbiased")
+        );
         assert!(!s.apply(action_for(Key::P).unwrap(), &mut c) && s.save_requested);
         s.frame_done(true);
         assert_eq!(s.accumulated, 1);
         assert_eq!(action_for(Key::Digit(9)), None);
-        assert_eq!(action_for(Key::W), None, "movement keys are held, not actions");
+        assert_eq!(
+            action_for(Key::W),
+            None,
+            "movement keys are held, not actions"
+        );
     }
 
     /// ReSTIR reuses the last frame's reservoirs only if that frame was a ReSTIR frame with
@@ -344,7 +410,10 @@ mod tests {
         s.frame_done(true); // a camera move restarts the accumulation, not the history
         assert!(s.restir_history && s.frame == 2 && s.accumulated == 1);
         s.apply(action_for(Key::B).unwrap(), &mut c);
-        assert!(!s.restir_history, "biased and unbiased reservoirs are weighted differently");
+        assert!(
+            !s.restir_history,
+            "biased and unbiased reservoirs are weighted differently"
+        );
         s.frame_done(true);
         s.apply(action_for(Key::Digit(3)).unwrap(), &mut c);
         assert!(!s.restir_history);
@@ -362,14 +431,29 @@ mod camera_roundtrip {
     #[test]
     fn fly_camera_reproduces_the_look_at_camera() {
         for (eye, target, up) in [
-            (Vec3::new(278.0, 273.0, -800.0), Vec3::new(278.0, 273.0, 0.0), Vec3::Y),
-            (Vec3::new(0.0, 4.0, 24.0), Vec3::new(0.0, 0.5, -2.0), Vec3::Y),
+            (
+                Vec3::new(278.0, 273.0, -800.0),
+                Vec3::new(278.0, 273.0, 0.0),
+                Vec3::Y,
+            ),
+            (
+                Vec3::new(0.0, 4.0, 24.0),
+                Vec3::new(0.0, 0.5, -2.0),
+                Vec3::Y,
+            ),
             (Vec3::new(1.0, 2.0, 3.0), Vec3::new(-2.0, 0.0, 1.0), Vec3::Z),
         ] {
             let want = look_at(eye, target, up, 39.3, 4.0 / 3.0);
             let got = FlyCamera::new(eye, target, up, 39.3, 100.0).camera(4.0 / 3.0);
-            for (a, b) in [(want.forward, got.forward), (want.right, got.right), (want.up, got.up)] {
-                assert!((Vec3::from(a) - Vec3::from(b)).length() < 1e-5, "{a:?} vs {b:?}");
+            for (a, b) in [
+                (want.forward, got.forward),
+                (want.right, got.right),
+                (want.up, got.up),
+            ] {
+                assert!(
+                    (Vec3::from(a) - Vec3::from(b)).length() < 1e-5,
+                    "{a:?} vs {b:?}"
+                );
             }
         }
     }

@@ -34,19 +34,22 @@ pub fn use_copy(choice: PresentChoice) -> Result<bool> {
     Ok(match choice {
         PresentChoice::Swapchain => false,
         PresentChoice::Copy => true,
-        PresentChoice::Auto => match probe_in_child()? {
-            Ok(()) => false,
-            Err(why) => {
-                eprintln!("viewer: {why}; copying frames to the window through the CPU (--present copy)");
-                true
+        PresentChoice::Auto => {
+            match probe_in_child()? {
+                Ok(()) => false,
+                Err(why) => {
+                    eprintln!("viewer: {why}; copying frames to the window through the CPU (--present copy)");
+                    true
+                }
             }
-        },
+        }
     })
 }
 
 /// Run the probe (this binary, with [`PROBE_ENV`] set) and read its verdict.
 fn probe_in_child() -> Result<std::result::Result<(), String>> {
-    let exe = std::env::current_exe().map_err(|e| Error(format!("cannot find the runner binary: {e}")))?;
+    let exe = std::env::current_exe()
+        .map_err(|e| Error(format!("cannot find the runner binary: {e}")))?;
     let mut child = Command::new(exe)
         .env(PROBE_ENV, "1")
         .stdin(Stdio::null())
@@ -58,7 +61,9 @@ fn probe_in_child() -> Result<std::result::Result<(), String>> {
     let status = loop {
         match child.try_wait() {
             Ok(Some(status)) => break Some(status),
-            Ok(None) if start.elapsed() < PROBE_TIMEOUT => std::thread::sleep(Duration::from_millis(10)),
+            Ok(None) if start.elapsed() < PROBE_TIMEOUT => {
+                std::thread::sleep(Duration::from_millis(10))
+            }
             _ => {
                 let _ = child.kill();
                 let _ = child.wait();
@@ -76,18 +81,27 @@ fn probe_in_child() -> Result<std::result::Result<(), String>> {
 /// What the probe's exit says about the swapchain (Err: why not).
 pub fn probe_verdict(status: Option<ExitStatus>, stderr: &str) -> std::result::Result<(), String> {
     let Some(status) = status else {
-        return Err(format!("the Vulkan driver did not answer within {} s whether it can present to this display", PROBE_TIMEOUT.as_secs()));
+        return Err(format!(
+            "the Vulkan driver did not answer within {} s whether it can present to this display",
+            PROBE_TIMEOUT.as_secs()
+        ));
     };
     if status.success() {
         return Ok(());
     }
     if let Some(signal) = std::os::unix::process::ExitStatusExt::signal(&status) {
-        return Err(format!("the Vulkan driver crashed (signal {signal}) when asked to present to this display"));
+        return Err(format!(
+            "the Vulkan driver crashed (signal {signal}) when asked to present to this display"
+        ));
     }
     if status.code() == Some(PROBE_UNSUPPORTED) {
         return Err("no Vulkan adapter that runs the kernels can present to this display".into());
     }
-    let last = stderr.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("no message");
+    let last = stderr
+        .lines()
+        .rev()
+        .find(|l| !l.trim().is_empty())
+        .unwrap_or("no message");
     Err(format!("the display probe failed ({status}: {last})"))
 }
 
@@ -105,15 +119,28 @@ pub fn probe_child() -> std::process::ExitCode {
         fn window_event(&mut self, _: &ActiveEventLoop, _: WindowId, _: WindowEvent) {}
     }
     fn surface_supported(event_loop: &ActiveEventLoop) -> Result<bool> {
-        let attrs = Window::default_attributes().with_visible(false).with_inner_size(winit::dpi::PhysicalSize::new(64, 64));
-        let window = Arc::new(event_loop.create_window(attrs).map_err(|e| Error(format!("cannot create a window: {e}")))?);
+        let attrs = Window::default_attributes()
+            .with_visible(false)
+            .with_inner_size(winit::dpi::PhysicalSize::new(64, 64));
+        let window = Arc::new(
+            event_loop
+                .create_window(attrs)
+                .map_err(|e| Error(format!("cannot create a window: {e}")))?,
+        );
         Ok(swapchain_surface(window, event_loop)?.1.is_some())
     }
     let mut probe = Probe(None);
     let outcome = EventLoop::new()
         .map_err(|e| Error(format!("cannot open the display: {e}")))
-        .and_then(|l| l.run_app(&mut probe).map_err(|e| Error(format!("event loop: {e}"))))
-        .and_then(|()| probe.0.unwrap_or_else(|| Err(Error("the window never opened".into()))));
+        .and_then(|l| {
+            l.run_app(&mut probe)
+                .map_err(|e| Error(format!("event loop: {e}")))
+        })
+        .and_then(|()| {
+            probe
+                .0
+                .unwrap_or_else(|| Err(Error("the window never opened".into())))
+        });
     match outcome {
         Ok(true) => std::process::ExitCode::SUCCESS,
         Ok(false) => std::process::ExitCode::from(PROBE_UNSUPPORTED as u8),
@@ -132,13 +159,19 @@ pub enum Pending {
 }
 
 /// Pick the adapter and the way to the window.
-pub fn open(window: &Arc<Window>, event_loop: &ActiveEventLoop, copy: bool) -> Result<(wgpu::Adapter, Pending)> {
+pub fn open(
+    window: &Arc<Window>,
+    event_loop: &ActiveEventLoop,
+    copy: bool,
+) -> Result<(wgpu::Adapter, Pending)> {
     if copy {
         let Some(adapter) = adapters().into_iter().next() else {
             bail!("no Vulkan adapter can run the kernels");
         };
-        let context = softbuffer::Context::new(window.clone()).map_err(|e| Error(format!("cannot copy to the window: {e}")))?;
-        let surface = softbuffer::Surface::new(&context, window.clone()).map_err(|e| Error(format!("cannot copy to the window: {e}")))?;
+        let context = softbuffer::Context::new(window.clone())
+            .map_err(|e| Error(format!("cannot copy to the window: {e}")))?;
+        let surface = softbuffer::Surface::new(&context, window.clone())
+            .map_err(|e| Error(format!("cannot copy to the window: {e}")))?;
         return Ok((adapter, Pending::Copy(surface)));
     }
     let (surface, adapter) = swapchain_surface(window.clone(), event_loop)?;
@@ -150,20 +183,28 @@ pub fn open(window: &Arc<Window>, event_loop: &ActiveEventLoop, copy: bool) -> R
 
 /// A Vulkan surface for the window, and the best adapter that runs the kernels and can
 /// present to it, if any (the question that crashes some drivers: see the module docs).
-fn swapchain_surface(window: Arc<Window>, event_loop: &ActiveEventLoop) -> Result<(wgpu::Surface<'static>, Option<wgpu::Adapter>)> {
+fn swapchain_surface(
+    window: Arc<Window>,
+    event_loop: &ActiveEventLoop,
+) -> Result<(wgpu::Surface<'static>, Option<wgpu::Adapter>)> {
     log::debug!("creating the Vulkan instance and surface");
     let instance = instance(Some(Box::new(event_loop.owned_display_handle())));
     let surface = instance
         .create_surface(window)
         .map_err(|e| Error(format!("cannot present to the window: {e}")))?;
     log::debug!("surface created; asking each adapter whether it can present to it");
-    let adapter = adapters_of(&instance).into_iter().find(|a| a.is_surface_supported(&surface));
+    let adapter = adapters_of(&instance)
+        .into_iter()
+        .find(|a| a.is_surface_supported(&surface));
     Ok((surface, adapter))
 }
 
 /// The frame's way to the window, once the device exists.
 pub enum Presenter {
-    Swapchain { surface: wgpu::Surface<'static>, config: wgpu::SurfaceConfiguration },
+    Swapchain {
+        surface: wgpu::Surface<'static>,
+        config: wgpu::SurfaceConfiguration,
+    },
     Copy(CopyTarget),
 }
 
@@ -183,15 +224,29 @@ pub struct CopyTarget {
 }
 
 impl Pending {
-    pub fn finish(self, adapter: &wgpu::Adapter, device: &wgpu::Device, window: &Window, width: u32, height: u32) -> Result<Presenter> {
+    pub fn finish(
+        self,
+        adapter: &wgpu::Adapter,
+        device: &wgpu::Device,
+        window: &Window,
+        width: u32,
+        height: u32,
+    ) -> Result<Presenter> {
         match self {
             Pending::Swapchain(surface) => {
                 let size = window.inner_size();
                 let mut config = surface
                     .get_default_config(adapter, size.width.max(1), size.height.max(1))
-                    .ok_or_else(|| Error("the window surface has no usable configuration".into()))?;
+                    .ok_or_else(|| {
+                        Error("the window surface has no usable configuration".into())
+                    })?;
                 // An sRGB swapchain encodes the linear colour the present shader writes.
-                if let Some(f) = surface.get_capabilities(adapter).formats.iter().find(|f| f.is_srgb()) {
+                if let Some(f) = surface
+                    .get_capabilities(adapter)
+                    .formats
+                    .iter()
+                    .find(|f| f.is_srgb())
+                {
                     config.format = *f;
                 }
                 config.present_mode = wgpu::PresentMode::AutoNoVsync;
@@ -202,7 +257,11 @@ impl Pending {
             Pending::Copy(window) => {
                 let texture = device.create_texture(&wgpu::TextureDescriptor {
                     label: Some("copy target"),
-                    size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                    size: wgpu::Extent3d {
+                        width,
+                        height,
+                        depth_or_array_layers: 1,
+                    },
                     mip_level_count: 1,
                     sample_count: 1,
                     dimension: wgpu::TextureDimension::D2,
@@ -275,14 +334,18 @@ impl Presenter {
             Presenter::Swapchain { surface, config } => {
                 log::trace!("acquiring the swapchain image");
                 let frame = match surface.get_current_texture() {
-                    wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+                    wgpu::CurrentSurfaceTexture::Success(t)
+                    | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
                     wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
                         surface.configure(device, config);
                         return Ok(());
                     }
                     _ => return Ok(()), // timeout or occluded: skip this frame
                 };
-                draw(&mut encoder, &frame.texture.create_view(&Default::default()));
+                draw(
+                    &mut encoder,
+                    &frame.texture.create_view(&Default::default()),
+                );
                 queue.submit([encoder.finish()]);
                 window.pre_present_notify();
                 log::trace!("presenting");
@@ -307,7 +370,11 @@ impl CopyTarget {
             self.texture.as_image_copy(),
             wgpu::TexelCopyBufferInfo {
                 buffer: readback,
-                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(self.row_bytes), rows_per_image: None },
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(self.row_bytes),
+                    rows_per_image: None,
+                },
             },
             self.texture.size(),
         );
@@ -319,10 +386,15 @@ impl CopyTarget {
     }
 
     fn show_previous(&mut self, device: &wgpu::Device, window: &Window) -> Result<()> {
-        let Some((index, submission)) = self.unshown.take() else { return Ok(()) };
+        let Some((index, submission)) = self.unshown.take() else {
+            return Ok(());
+        };
         // Wait for that copy only, not for the work submitted after it.
         device
-            .poll(wgpu::PollType::Wait { submission_index: Some(submission), timeout: None })
+            .poll(wgpu::PollType::Wait {
+                submission_index: Some(submission),
+                timeout: None,
+            })
             .map_err(|e| Error(format!("GPU error while copying the frame: {e}")))?;
         let result = self.put(index, window);
         self.readbacks[index].unmap();
@@ -331,22 +403,30 @@ impl CopyTarget {
 
     /// The pixels of mapped read-back `index` into the window.
     fn put(&mut self, index: usize, window: &Window) -> Result<()> {
-        let (w, h) = (self.texture.width() as usize, self.texture.height() as usize);
+        let (w, h) = (
+            self.texture.width() as usize,
+            self.texture.height() as usize,
+        );
         let size = window.inner_size();
-        let (Some(ww), Some(wh)) = (NonZeroU32::new(size.width), NonZeroU32::new(size.height)) else {
+        let (Some(ww), Some(wh)) = (NonZeroU32::new(size.width), NonZeroU32::new(size.height))
+        else {
             return Ok(()); // minimised
         };
-        let failed = |e: softbuffer::SoftBufferError| Error(format!("cannot copy to the window: {e}"));
+        let failed =
+            |e: softbuffer::SoftBufferError| Error(format!("cannot copy to the window: {e}"));
         self.window.resize(ww, wh).map_err(failed)?;
         let mut buffer = self.window.buffer_mut().map_err(failed)?;
         {
-            let bytes = self.readbacks[index].slice(..).get_mapped_range().map_err(|e| Error(format!("cannot read the frame back: {e}")))?;
+            let bytes = self.readbacks[index]
+                .slice(..)
+                .get_mapped_range()
+                .map_err(|e| Error(format!("cannot read the frame back: {e}")))?;
             let (ww, wh) = (ww.get() as usize, wh.get() as usize);
             for (y, out) in buffer.chunks_exact_mut(ww).take(wh).enumerate() {
                 let shown = if y < h { w.min(ww) } else { 0 };
                 let row = &bytes[y.min(h - 1) * self.row_bytes as usize..][..4 * shown];
                 // softbuffer's pixels are 0x00RRGGBB.
-                for (px, rgba) in out[..shown].iter_mut().zip(row.chunks_exact(4)) {
+                for (px, rgba) in out[..shown].iter_mut().zip(row.as_chunks::<4>().0) {
                     *px = u32::from_be_bytes([0, rgba[0], rgba[1], rgba[2]]);
                 }
                 out[shown..].fill(0);
@@ -372,8 +452,17 @@ mod tests {
         assert!(crashed.contains("crashed (signal 11)"), "{crashed}");
         let unsupported = probe_verdict(Some(exited(PROBE_UNSUPPORTED)), "").unwrap_err();
         assert!(unsupported.contains("no Vulkan adapter"), "{unsupported}");
-        let failed = probe_verdict(Some(exited(1)), "warning: x\nerror: cannot open the display: gone\n\n").unwrap_err();
-        assert!(failed.ends_with("error: cannot open the display: gone)"), "{failed}");
-        assert!(probe_verdict(None, "").unwrap_err().contains("did not answer"));
+        let failed = probe_verdict(
+            Some(exited(1)),
+            "warning: x\nerror: cannot open the display: gone\n\n",
+        )
+        .unwrap_err();
+        assert!(
+            failed.ends_with("error: cannot open the display: gone)"),
+            "{failed}"
+        );
+        assert!(probe_verdict(None, "")
+            .unwrap_err()
+            .contains("did not answer"));
     }
 }

@@ -35,7 +35,13 @@ pub fn ambient_occlusion(
 
 /// One AO sample for a camera ray: 0 where the ray leaves the scene (no surface, no
 /// occlusion to speak of), the unoccluded fraction (grey) where it hits.
-pub fn ao_sample(scene: &Scene, params: &FrameParams, ray: Ray, rng: &mut Rng, rays: &mut u32) -> Vec3 {
+pub fn ao_sample(
+    scene: &Scene,
+    params: &FrameParams,
+    ray: Ray,
+    rng: &mut Rng,
+    rays: &mut u32,
+) -> Vec3 {
     let hit = scene.closest_hit(&ray, f32::INFINITY);
     *rays += 1;
     if !hit.is_hit() {
@@ -54,5 +60,7 @@ pub fn ao_sample(scene: &Scene, params: &FrameParams, ray: Ray, rng: &mut Rng, r
 }
 
 pub fn render_pixel(scene: &Scene, params: &FrameParams, x: u32, y: u32) -> PixelResult {
-    accumulate_samples(params, x, y, |ray, rng, rays| ao_sample(scene, params, ray, rng, rays))
+    accumulate_samples(params, x, y, |ray, rng, rays| {
+        ao_sample(scene, params, ray, rng, rays)
+    })
 }

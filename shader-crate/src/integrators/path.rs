@@ -6,6 +6,7 @@
 //!   handled well.
 //! - `RIS`: like NEE, but the direct light at the first vertex comes from resampled
 //!   importance sampling (`ris.rs`).
+//!
 //! Surfaces are two-sided Lambertian, lights one-sided, the sky a constant radiance.
 use crate::bvh::{offset_ray_origin, surface_hit, Scene, SurfaceHit};
 use crate::glam::Vec3;
@@ -46,7 +47,13 @@ impl PathState {
     /// Continue from surface `s` (albedo `albedo`) by cosine sampling: the sampling cancels
     /// cos/π against the Lambertian BRDF, leaving throughput *= albedo (the course's
     /// update). Returns false when Russian roulette ends the path.
-    pub fn bounce(&mut self, s: &SurfaceHit, albedo: Vec3, params: &FrameParams, rng: &mut Rng) -> bool {
+    pub fn bounce(
+        &mut self,
+        s: &SurfaceHit,
+        albedo: Vec3,
+        params: &FrameParams,
+        rng: &mut Rng,
+    ) -> bool {
         let local = cosine_hemisphere(rng.next_f32(), rng.next_f32());
         self.bsdf_pdf = local.z / PI;
         self.throughput *= albedo;
@@ -65,7 +72,15 @@ impl PathState {
 
 /// Direct light at surface `s` by next-event estimation: one light point, one shadow ray.
 /// With `mis`, weighted against BSDF sampling by the power heuristic.
-pub fn direct_nee(scene: &Scene, params: &FrameParams, s: &SurfaceHit, albedo: Vec3, mis: bool, rng: &mut Rng, rays: &mut u32) -> Vec3 {
+pub fn direct_nee(
+    scene: &Scene,
+    params: &FrameParams,
+    s: &SurfaceHit,
+    albedo: Vec3,
+    mis: bool,
+    rng: &mut Rng,
+    rays: &mut u32,
+) -> Vec3 {
     let ls = sample_light(scene, params.light_sampling, rng);
     let g = geometry_term(s.p, s.n, ls.p, ls.n);
     if g <= 0.0 {
@@ -87,7 +102,14 @@ pub fn direct_nee(scene: &Scene, params: &FrameParams, s: &SurfaceHit, albedo: V
 
 /// Follow a path from `state` to its end; `rays` counts traced rays (segments and shadow
 /// rays).
-pub fn trace_path(scene: &Scene, params: &FrameParams, state: PathState, rng: &mut Rng, strategy: u32, rays: &mut u32) -> Vec3 {
+pub fn trace_path(
+    scene: &Scene,
+    params: &FrameParams,
+    state: PathState,
+    rng: &mut Rng,
+    strategy: u32,
+    rays: &mut u32,
+) -> Vec3 {
     let mut radiance = Vec3::ZERO;
     let mut st = state;
     let has_lights = !scene.lights.is_empty();
@@ -107,8 +129,9 @@ pub fn trace_path(scene: &Scene, params: &FrameParams, state: PathState, rng: &m
                 1.0
             } else if strategy == MIS {
                 let cos_light = -s.n.dot(st.ray.dir);
-                let light_pdf = light_pdf_area(scene, params.light_sampling, hit.prim) * hit.t * hit.t
-                    / cos_light.max(1e-12);
+                let light_pdf =
+                    light_pdf_area(scene, params.light_sampling, hit.prim) * hit.t * hit.t
+                        / cos_light.max(1e-12);
                 power_heuristic(st.bsdf_pdf, light_pdf)
             } else {
                 0.0 // NEE and RIS already counted it as direct light
@@ -134,7 +157,13 @@ pub fn trace_path(scene: &Scene, params: &FrameParams, state: PathState, rng: &m
     radiance
 }
 
-pub fn render_pixel(scene: &Scene, params: &FrameParams, x: u32, y: u32, strategy: u32) -> PixelResult {
+pub fn render_pixel(
+    scene: &Scene,
+    params: &FrameParams,
+    x: u32,
+    y: u32,
+    strategy: u32,
+) -> PixelResult {
     crate::integrators::accumulate_samples(params, x, y, |ray, rng, rays| {
         trace_path(scene, params, PathState::camera(ray), rng, strategy, rays)
     })

@@ -24,7 +24,9 @@ use crate::bvh::{surface_hit, Scene, SurfaceHit};
 use crate::camera::primary_ray;
 use crate::glam::Vec3;
 use crate::integrators::path::{trace_path, PathState, NEE};
-use crate::integrators::ris::{initial_candidates, light_point, shade_reservoir, target_pdf_of, unshadowed_reservoir};
+use crate::integrators::ris::{
+    initial_candidates, light_point, shade_reservoir, target_pdf_of, unshadowed_reservoir,
+};
 use crate::math::{sin_cos, sqrt, vec3, PI};
 use crate::reservoir::Reservoir;
 use crate::rng::{pcg_hash, Rng};
@@ -60,7 +62,12 @@ fn unbiased(params: &FrameParams) -> bool {
 
 /// The random stream of pass `pass` at a pixel in this frame.
 fn pass_rng(params: &FrameParams, pixel: u32, pass: u32) -> Rng {
-    Rng::new(pixel, params.frame, params.sample_offset, params.seed ^ pcg_hash(pass + PASS_STREAM_SALT))
+    Rng::new(
+        pixel,
+        params.frame,
+        params.sample_offset,
+        params.seed ^ pcg_hash(pass + PASS_STREAM_SALT),
+    )
 }
 
 fn has_hit(g: &GBufferTexel) -> bool {
@@ -68,16 +75,31 @@ fn has_hit(g: &GBufferTexel) -> bool {
 }
 
 /// Pass 1: the camera ray of this pixel (jittered per frame) and what it hits.
-pub fn primary_hit(scene: &Scene, params: &FrameParams, x: u32, y: u32, rays: &mut u32) -> GBufferTexel {
+pub fn primary_hit(
+    scene: &Scene,
+    params: &FrameParams,
+    x: u32,
+    y: u32,
+    rays: &mut u32,
+) -> GBufferTexel {
     let pixel = y * params.width + x;
     let mut rng = pass_rng(params, pixel, STREAM_PRIMARY);
     let jx = rng.next_f32();
     let jy = rng.next_f32();
-    let ray = primary_ray(&params.camera, params.width, params.height, x as f32 + jx, y as f32 + jy);
+    let ray = primary_ray(
+        &params.camera,
+        params.width,
+        params.height,
+        x as f32 + jx,
+        y as f32 + jy,
+    );
     let hit = scene.closest_hit(&ray, f32::INFINITY);
     *rays += 1;
     if !hit.is_hit() {
-        return GBufferTexel { prim: INVALID, ..Default::default() };
+        return GBufferTexel {
+            prim: INVALID,
+            ..Default::default()
+        };
     }
     let s = surface_hit(scene.triangles, &ray, &hit);
     GBufferTexel {
@@ -110,7 +132,13 @@ fn keep_if_visible(scene: &Scene, r: &mut Reservoir, p: Vec3, n: Vec3, rays: &mu
 /// Pass 2: RIS over the light candidates; the pick is tested for visibility (unless
 /// `RESTIR_VISIBILITY_REUSE` is off), so that neither this pixel's later frames nor its
 /// neighbours inherit a light it cannot see.
-pub fn initial_pass(scene: &Scene, params: &FrameParams, g: &GBufferTexel, pixel: u32, rays: &mut u32) -> Reservoir {
+pub fn initial_pass(
+    scene: &Scene,
+    params: &FrameParams,
+    g: &GBufferTexel,
+    pixel: u32,
+    rays: &mut u32,
+) -> Reservoir {
     if !has_hit(g) {
         return Reservoir::empty();
     }
@@ -131,7 +159,9 @@ fn visibility_reuse(params: &FrameParams) -> bool {
 /// Whether a surface of normal `n` at distance `depth` from an eye is close enough to
 /// the surface `other` saw from the same eye to share light samples.
 fn similar_surface(n: Vec3, depth: f32, other: &GBufferTexel) -> bool {
-    has_hit(other) && n.dot(vec3(other.n)) >= NORMAL_THRESHOLD && (depth - other.depth).abs() <= DEPTH_THRESHOLD * depth
+    has_hit(other)
+        && n.dot(vec3(other.n)) >= NORMAL_THRESHOLD
+        && (depth - other.depth).abs() <= DEPTH_THRESHOLD * depth
 }
 
 /// Whether the surface seen in `other` is close enough to `g`'s (same camera) to share
@@ -163,7 +193,14 @@ pub fn project(camera: &Camera, width: u32, height: u32, p: Vec3) -> Option<(u32
 /// every reservoir keeps only samples its owner sees, so this is zero exactly where that
 /// reservoir could not have produced the sample. `seen` skips the shadow ray when the
 /// sample is known to be visible there (it came from that reservoir).
-fn target_with_visibility(scene: &Scene, params: &FrameParams, g: &GBufferTexel, r: &Reservoir, seen: bool, rays: &mut u32) -> f32 {
+fn target_with_visibility(
+    scene: &Scene,
+    params: &FrameParams,
+    g: &GBufferTexel,
+    r: &Reservoir,
+    seen: bool,
+    rays: &mut u32,
+) -> f32 {
     if !has_hit(g) {
         return 0.0;
     }
@@ -212,7 +249,8 @@ pub fn temporal_pass(
     if params.restir_flags & wanted != wanted || !has_hit(&g) {
         return cur;
     }
-    let Some((px, py)) = project(&params.prev_camera, params.width, params.height, vec3(g.p)) else {
+    let Some((px, py)) = project(&params.prev_camera, params.width, params.height, vec3(g.p))
+    else {
         return cur;
     };
     let prev_pixel = (py * params.width + px) as usize;
@@ -239,7 +277,10 @@ pub fn temporal_pass(
         // This pixel sees the sample (it was chosen with visibility in the target).
         let own = out.target_pdf;
         let there = target_with_visibility(scene, params, &gp, &out, from_prev, rays);
-        z = balance_normaliser(cur.m * own + prev.m * there, if from_prev { there } else { own });
+        z = balance_normaliser(
+            cur.m * own + prev.m * there,
+            if from_prev { there } else { own },
+        );
     }
     out.finalize(z);
     out
@@ -288,7 +329,11 @@ pub fn spatial_pass(
             continue;
         }
         let neighbour = input[q as usize];
-        if out.merge(&neighbour, target_pdf_of(scene, &neighbour, p, n, albedo), rng.next_f32()) {
+        if out.merge(
+            &neighbour,
+            target_pdf_of(scene, &neighbour, p, n, albedo),
+            rng.next_f32(),
+        ) {
             source = n_used as u32;
         }
         used[n_used] = q;
@@ -323,12 +368,23 @@ pub fn spatial_pass(
 }
 
 /// Pass 5: the pixel's radiance for this frame.
-pub fn shade_pass(scene: &Scene, params: &FrameParams, g: &GBufferTexel, r: &Reservoir, pixel: u32, rays: &mut u32) -> Vec3 {
+pub fn shade_pass(
+    scene: &Scene,
+    params: &FrameParams,
+    g: &GBufferTexel,
+    r: &Reservoir,
+    pixel: u32,
+    rays: &mut u32,
+) -> Vec3 {
     if !has_hit(g) {
         return vec3(params.sky);
     }
     let material = scene.material_of(g.prim);
-    let mut radiance = if g.front != 0 { material.emission() } else { Vec3::ZERO };
+    let mut radiance = if g.front != 0 {
+        material.emission()
+    } else {
+        Vec3::ZERO
+    };
     if params.max_depth < 2 {
         return radiance;
     }
@@ -343,7 +399,12 @@ pub fn shade_pass(scene: &Scene, params: &FrameParams, g: &GBufferTexel, r: &Res
     // the indirect light, and at max_depth 2 the sky's direct light (as NEE's bounce does).
     if params.max_depth > 2 || vec3(params.sky) != Vec3::ZERO {
         let mut rng = pass_rng(params, pixel, STREAM_SHADE);
-        let s = SurfaceHit { p, n, front_face: g.front != 0, prim: g.prim };
+        let s = SurfaceHit {
+            p,
+            n,
+            front_face: g.front != 0,
+            prim: g.prim,
+        };
         let mut state = PathState::camera(crate::intersect::Ray::new(p, n));
         if state.bounce(&s, albedo, params, &mut rng) {
             radiance += trace_path(scene, params, state, &mut rng, NEE, rays);

@@ -13,7 +13,11 @@ use crate::types::FrameParams;
 /// A light point given by triangle and barycentrics: position, front normal, radiance.
 pub fn light_point(scene: &Scene, triangle: u32, b1: f32, b2: f32) -> (Vec3, Vec3, Vec3) {
     let tri = scene.triangles[triangle as usize];
-    (tri.point(b1, b2), tri.normal(), scene.materials[tri.material as usize].emission())
+    (
+        tri.point(b1, b2),
+        tri.normal(),
+        scene.materials[tri.material as usize].emission(),
+    )
 }
 
 /// The unshadowed contribution f · Le · G of a light point at a surface point (RGB).
@@ -36,7 +40,14 @@ pub fn target_pdf_of(scene: &Scene, r: &Reservoir, p: Vec3, n: Vec3, albedo: Vec
 }
 
 /// Stream `params.candidates` light samples through a reservoir (not yet finalised).
-pub fn initial_candidates(scene: &Scene, params: &FrameParams, p: Vec3, n: Vec3, albedo: Vec3, rng: &mut Rng) -> Reservoir {
+pub fn initial_candidates(
+    scene: &Scene,
+    params: &FrameParams,
+    p: Vec3,
+    n: Vec3,
+    albedo: Vec3,
+    rng: &mut Rng,
+) -> Reservoir {
     let mut r = Reservoir::empty();
     if scene.lights.is_empty() {
         return r;
@@ -45,7 +56,14 @@ pub fn initial_candidates(scene: &Scene, params: &FrameParams, p: Vec3, n: Vec3,
     while i < params.candidates {
         let ls = sample_light(scene, params.light_sampling, rng);
         let p_hat = target_pdf(p, n, albedo, ls.p, ls.n, ls.emission);
-        r.update(ls.triangle, ls.b1, ls.b2, p_hat / ls.pdf_area, p_hat, rng.next_f32());
+        r.update(
+            ls.triangle,
+            ls.b1,
+            ls.b2,
+            p_hat / ls.pdf_area,
+            p_hat,
+            rng.next_f32(),
+        );
         i += 1;
     }
     r
@@ -61,7 +79,14 @@ pub fn unshadowed_reservoir(scene: &Scene, r: &Reservoir, p: Vec3, n: Vec3, albe
 }
 
 /// Shade a finalised reservoir: f · Le · G · V · W, one shadow ray.
-pub fn shade_reservoir(scene: &Scene, r: &Reservoir, p: Vec3, n: Vec3, albedo: Vec3, rays: &mut u32) -> Vec3 {
+pub fn shade_reservoir(
+    scene: &Scene,
+    r: &Reservoir,
+    p: Vec3,
+    n: Vec3,
+    albedo: Vec3,
+    rays: &mut u32,
+) -> Vec3 {
     let contribution = unshadowed_reservoir(scene, r, p, n, albedo);
     if contribution == Vec3::ZERO {
         return Vec3::ZERO;
@@ -75,7 +100,14 @@ pub fn shade_reservoir(scene: &Scene, r: &Reservoir, p: Vec3, n: Vec3, albedo: V
 }
 
 /// Direct light at `s` by RIS (the `ris` integrator's first vertex).
-pub fn direct_ris(scene: &Scene, params: &FrameParams, s: &SurfaceHit, albedo: Vec3, rng: &mut Rng, rays: &mut u32) -> Vec3 {
+pub fn direct_ris(
+    scene: &Scene,
+    params: &FrameParams,
+    s: &SurfaceHit,
+    albedo: Vec3,
+    rng: &mut Rng,
+    rays: &mut u32,
+) -> Vec3 {
     let mut r = initial_candidates(scene, params, s.p, s.n, albedo, rng);
     r.finalize(r.m);
     shade_reservoir(scene, &r, s.p, s.n, albedo, rays)
