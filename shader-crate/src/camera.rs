@@ -2,6 +2,7 @@
 use crate::glam::Vec3;
 use crate::intersect::Ray;
 use crate::math::vec3;
+use crate::rng::Rng;
 use crate::types::Camera;
 
 /// Ray through the point (x + jx, y + jy) of the image, jx, jy in [0, 1) (box filter).
@@ -10,6 +11,14 @@ pub fn primary_ray(cam: &Camera, width: u32, height: u32, x: f32, y: f32) -> Ray
     let ndc_y = 1.0 - 2.0 * y / height as f32;
     let dir = vec3(cam.forward) + vec3(cam.right) * ndc_x + vec3(cam.up) * ndc_y;
     Ray::new(vec3(cam.eye), dir.normalize())
+}
+
+/// The ray through a uniformly jittered point of pixel (x, y) (box filter); draws two
+/// numbers from `rng`.
+pub fn jittered_ray(cam: &Camera, width: u32, height: u32, x: u32, y: u32, rng: &mut Rng) -> Ray {
+    let jx = rng.next_f32();
+    let jy = rng.next_f32();
+    primary_ray(cam, width, height, x as f32 + jx, y as f32 + jy)
 }
 
 /// Build the camera from a look-at description; `fov_y_degrees` is the vertical field of

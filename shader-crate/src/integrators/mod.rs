@@ -6,7 +6,7 @@ pub mod path;
 pub mod restir;
 pub mod ris;
 
-use crate::camera::primary_ray;
+use crate::camera::jittered_ray;
 use crate::glam::Vec3;
 use crate::intersect::Ray;
 use crate::rng::Rng;
@@ -35,15 +35,7 @@ pub fn accumulate_samples<F: Fn(Ray, &mut Rng, &mut u32) -> Vec3>(
     let mut s = 0;
     while s < params.samples {
         let mut rng = Rng::new(pixel, params.frame, params.sample_offset + s, params.seed);
-        let jx = rng.next_f32();
-        let jy = rng.next_f32();
-        let ray = primary_ray(
-            &params.camera,
-            params.width,
-            params.height,
-            x as f32 + jx,
-            y as f32 + jy,
-        );
+        let ray = jittered_ray(&params.camera, params.width, params.height, x, y, &mut rng);
         let l = radiance(ray, &mut rng, &mut rays);
         if l.is_finite() {
             sum += l;

@@ -21,7 +21,7 @@
 //! sees it (one shadow ray per such reservoir; Bitterli et al. 2020, Alg. 6 with the
 //! ray-traced test). Both are chosen at run time.
 use crate::bvh::{surface_hit, Scene, SurfaceHit};
-use crate::camera::primary_ray;
+use crate::camera::jittered_ray;
 use crate::glam::Vec3;
 use crate::integrators::path::{trace_path, PathState, NEE};
 use crate::integrators::ris::{
@@ -84,15 +84,7 @@ pub fn primary_hit(
 ) -> GBufferTexel {
     let pixel = y * params.width + x;
     let mut rng = pass_rng(params, pixel, STREAM_PRIMARY);
-    let jx = rng.next_f32();
-    let jy = rng.next_f32();
-    let ray = primary_ray(
-        &params.camera,
-        params.width,
-        params.height,
-        x as f32 + jx,
-        y as f32 + jy,
-    );
+    let ray = jittered_ray(&params.camera, params.width, params.height, x, y, &mut rng);
     let hit = scene.closest_hit(&ray, f32::INFINITY);
     *rays += 1;
     if !hit.is_hit() {
