@@ -780,3 +780,46 @@ fn huge_and_tiny_triangles_are_kept_and_only_flat_ones_dropped() {
         "{err}"
     );
 }
+
+/// `mtllib a.mtl b.mtl` loads both files; an MTL named by a path that does not exist is
+/// found by its base name next to the OBJ (as Blender exports it); one found nowhere is a
+/// warning that names the paths tried.
+#[test]
+fn several_mtl_files_and_mtl_found_by_base_name() {
+    write("first.mtl", b"newmtl a\nKd 0.2 0.2 0.2\n");
+    write("second.mtl", b"newmtl lamp\nKe 2 2 2\n");
+    let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    let view = ["--eye", "0.2,0.2,2", "--target", "0.2,0.2,0"];
+    let obj = write(
+        "two_libs.obj",
+        format!("mtllib first.mtl second.mtl\n{tri}usemtl a\nf 1 2 3\nusemtl lamp\nf 1 2 3\n")
+            .as_bytes(),
+    );
+    let o = render_scene(&obj, &view);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.success() && err.contains("(1 emissive)") && !err.contains("warning"),
+        "{err}"
+    );
+
+    let obj = write(
+        "elsewhere.obj",
+        format!("mtllib C:\\exports\\textures\\second.mtl\n{tri}usemtl lamp\nf 1 2 3\n").as_bytes(),
+    );
+    let o = render_scene(&obj, &view);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && err.contains("(1 emissive)"), "{err}");
+
+    let obj = write(
+        "missing_lib.obj",
+        format!("mtllib lost/nowhere.mtl\n{tri}f 1 2 3\n").as_bytes(),
+    );
+    let o = render_scene(&obj, &["--integrator", "ao"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("mtllib 'lost/nowhere.mtl' not found (tried '")
+            && err.contains("nowhere.mtl'"),
+        "{err}"
+    );
+}

@@ -245,8 +245,71 @@ pub fn load_obj(path: &Path) -> Result<Scene> {
     };
     let text = String::from_utf8_lossy(&bytes);
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    parse_obj(&path.display().to_string(), &text, |mtl| {
-        load_mtl_file(&dir.join(mtl))
+    let name = path.display().to_string();
+    let notes = std::cell::RefCell::new(Vec::new());
+    let mut scene = parse_obj(&name, &text, |mtllib| {
+        load_mtl_files(&name, &dir, mtllib, &mut notes.borrow_mut())
+    })?;
+    scene.warnings.extend(notes.into_inner());
+    Ok(scene)
+}
+
+/// The materials of an `mtllib` line, which may name several files (`mtllib a.mtl b.mtl`;
+/// a single name with spaces is tried first). Each file is looked up relative to the OBJ and
+/// then, as Blender does, by its base name next to it; one that is found nowhere is a note
+/// naming the paths tried. The materials of all files found are merged.
+fn load_mtl_files(
+    obj: &str,
+    dir: &Path,
+    mtllib: &Path,
+    notes: &mut Vec<String>,
+) -> Result<tobj::MTLLoadResult> {
+    let names: Vec<std::path::PathBuf> = if dir.join(mtllib).is_file() {
+        vec![mtllib.to_path_buf()]
+    } else {
+        mtllib
+            .to_string_lossy()
+            .split_whitespace()
+            .map(std::path::PathBuf::from)
+            .collect()
+    };
+    // An empty table of tobj's own map type, to merge into.
+    let Ok((mut materials, mut index)) = tobj::load_mtl_buf(&mut "".as_bytes()) else {
+        return Ok(Err(tobj::LoadError::MaterialParseError));
+    };
+    let mut found = false;
+    for name in &names {
+        // The base name after a slash or a backslash (Windows exports name their MTL so).
+        let text = name.to_string_lossy();
+        let base = text.rsplit(['/', '\\']).next().filter(|b| !b.is_empty());
+        let tried = [Some(dir.join(name)), base.map(|b| dir.join(b))];
+        let Some(file) = tried.iter().flatten().find(|p| p.is_file()) else {
+            let paths: Vec<String> = tried
+                .iter()
+                .flatten()
+                .map(|p| format!("'{}'", p.display()))
+                .collect();
+            notes.push(format!(
+                "{obj}: mtllib '{}' not found (tried {})",
+                name.display(),
+                paths.join(" and ")
+            ));
+            continue;
+        };
+        match load_mtl_file(file)? {
+            Ok((more, more_index)) => {
+                let offset = materials.len();
+                index.extend(more_index.into_iter().map(|(k, v)| (k, v + offset)));
+                materials.extend(more);
+                found = true;
+            }
+            Err(e) => return Ok(Err(e)),
+        }
+    }
+    Ok(if found {
+        Ok((materials, index))
+    } else {
+        Err(tobj::LoadError::OpenFileFailed)
     })
 }
 
