@@ -823,3 +823,54 @@ fn several_mtl_files_and_mtl_found_by_base_name() {
         "{err}"
     );
 }
+
+/// Under a file-size limit (`ulimit -f`) the write fails: the run says so with one line and
+/// a non-zero exit, and the output that was there stays whole.
+#[test]
+fn a_file_size_limit_is_reported_and_keeps_the_old_output() {
+    let out = dir().join("limited.png");
+    let render = |size: &str| -> Vec<String> {
+        [
+            "render",
+            "--backend",
+            "cpu",
+            "--integrator",
+            "ao",
+            "--spp",
+            "1",
+            "--width",
+            size,
+            "--height",
+            size,
+            "--out",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .chain([out.to_str().unwrap().to_string()])
+        .collect()
+    };
+    let small: Vec<String> = render("8");
+    assert!(
+        runner(&small.iter().map(String::as_str).collect::<Vec<_>>(), &[])
+            .status
+            .success()
+    );
+    let before = std::fs::read(&out).unwrap();
+    // A 64x64 PNG of AO noise is well over the limit of one 1 KiB block (sh's ulimit -f).
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -f 1 && exec \"$0\" {}",
+            render("64").join(" ")
+        ))
+        .arg(env!("CARGO_BIN_EXE_runner"))
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .unwrap();
+    assert_fails_with(&o, "cannot write");
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        before,
+        "the old output must be untouched"
+    );
+}

@@ -12,6 +12,13 @@ fn main() -> ExitCode {
     if std::env::var_os(runner::viewer::present::PROBE_ENV).is_some() {
         return runner::viewer::present::probe_child();
     }
+    // Past a file-size limit (`ulimit -f`) the kernel would kill us mid-write with SIGXFSZ;
+    // ignored, the write fails with EFBIG, which `output::write_file` reports (the old output
+    // stays, as the new one goes to a temporary file first).
+    // SAFETY: setting a signal's disposition to SIG_IGN has no preconditions.
+    unsafe {
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+    }
     // Bad input is reported as errors everywhere we know of; should anything still panic
     // (a dependency, say), say so on one line rather than with a backtrace.
     if std::env::var_os("RUST_BACKTRACE").is_none() {
