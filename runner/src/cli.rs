@@ -28,7 +28,7 @@ pub enum Command {
     Render(RenderArgs),
     /// Time a render workload: ms per frame from GPU timestamps, rays per second
     Bench(BenchArgs),
-    /// Write a built-in scene (many-lights, rocks-<N>) as OBJ + MTL
+    /// Write a built-in scene (many-lights, light-hall, rocks-<N>) as OBJ + MTL
     Generate(GenerateArgs),
     /// Compare an image with a reference: RMSE, relMSE, identical pixels
     Compare(CompareArgs),
@@ -116,7 +116,7 @@ pub enum BackendChoice {
 #[derive(Args, Debug, Clone)]
 pub struct SceneArgs {
     /// OBJ scene file (MTL files next to it), or a built-in scene: cornell-box,
-    /// many-lights, rocks-<N> (N triangles, e.g. rocks-1m) [default: cornell-box]
+    /// many-lights, light-hall, rocks-<N> (N triangles, e.g. rocks-1m) [default: cornell-box]
     #[arg(long, value_name = "FILE.obj|NAME")]
     pub scene: Option<PathBuf>,
     /// Image width in pixels
@@ -290,7 +290,7 @@ pub enum PresentChoice {
 
 #[derive(Args, Debug, Clone)]
 pub struct GenerateArgs {
-    /// Built-in scene: many-lights or rocks-<N> (e.g. rocks-1m)
+    /// Built-in scene: many-lights, light-hall or rocks-<N> (e.g. rocks-1m)
     pub name: String,
     /// Output OBJ file; the MTL file is written next to it
     #[arg(long, value_name = "FILE.obj")]

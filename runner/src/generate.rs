@@ -42,7 +42,7 @@ use crate::scene::{CameraHint, Scene};
 
 /// Names accepted by `--scene` besides OBJ paths.
 pub const BUILTIN_NAMES: &str =
-    "cornell-box, many-lights, rocks-<N> (N triangles, e.g. rocks-100k, rocks-1m)";
+    "cornell-box, many-lights, light-hall, rocks-<N> (N triangles, e.g. rocks-100k, rocks-1m)";
 
 /// A generated scene before BVH construction.
 pub struct Generated {
@@ -81,6 +81,7 @@ const ROCK_PHASE_RANGE: f32 = 6.283;
 pub fn builtin(name: &str) -> Option<Result<Generated>> {
     match name {
         "many-lights" => Some(Ok(many_lights())),
+        "light-hall" => Some(Ok(light_hall())),
         _ => {
             let n = name.strip_prefix("rocks-")?;
             Some(match parse_count(n) {
@@ -203,6 +204,97 @@ fn hue(h: f32) -> Vec3 {
         1.0 - k.min(4.0 - k).clamp(0.0, 1.0)
     };
     Vec3::new(k(5.0), k(3.0), k(1.0))
+}
+
+/// A second many-lights scene, built differently from `many_lights` (which was tuned on):
+/// an enclosed hall (floor, ceiling, walls) with two rows of pillars, lit by 192 small
+/// emitters on the side walls facing inward — vertical lights, heavy occlusion by the
+/// pillars, and a camera looking down the hall.
+pub fn light_hall() -> Generated {
+    let mut rng = SceneRng::new(4242);
+    let mut u = move || rng.next_f32();
+    let mut materials = vec![
+        Material::new(Vec3::splat(0.55), Vec3::ZERO), // floor, ceiling, walls
+        Material::new(Vec3::new(0.6, 0.55, 0.5), Vec3::ZERO), // pillars
+    ];
+    let (w, h, len) = (8.0, 6.0, 60.0);
+    let corner = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+    let mut tris: Vec<Triangle> = Vec::new();
+    for q in [
+        [
+            corner(-w, 0.0, 0.0),
+            corner(w, 0.0, 0.0),
+            corner(w, 0.0, -len),
+            corner(-w, 0.0, -len),
+        ],
+        [
+            corner(-w, h, 0.0),
+            corner(-w, h, -len),
+            corner(w, h, -len),
+            corner(w, h, 0.0),
+        ],
+        [
+            corner(-w, 0.0, 0.0),
+            corner(-w, 0.0, -len),
+            corner(-w, h, -len),
+            corner(-w, h, 0.0),
+        ],
+        [
+            corner(w, 0.0, 0.0),
+            corner(w, h, 0.0),
+            corner(w, h, -len),
+            corner(w, 0.0, -len),
+        ],
+        [
+            corner(-w, 0.0, -len),
+            corner(w, 0.0, -len),
+            corner(w, h, -len),
+            corner(-w, h, -len),
+        ],
+    ] {
+        tris.extend(quad(q, 0));
+    }
+    for i in 0..9 {
+        let z = -6.0 - 6.0 * i as f32;
+        for x in [-4.0, 4.0] {
+            tris.extend(closed_box(
+                Vec3::new(x - 0.4, 0.0, z - 0.4),
+                Vec3::new(x + 0.4, h, z + 0.4),
+                1,
+            ));
+        }
+    }
+    // 192 emitters on the side walls, a hair off them, facing into the hall.
+    for i in 0..192 {
+        let side = if i % 2 == 0 { -1.0 } else { 1.0 };
+        let (y, z) = (0.5 + (h - 1.0) * u(), -2.0 - (len - 4.0) * u());
+        let s = 0.1 + 0.3 * u();
+        let strength = 10f32.powf(3.0 * u() - 1.0);
+        materials.push(Material::new(
+            Vec3::splat(0.5),
+            (hue(u()) * 0.7 + Vec3::splat(0.3)) * strength,
+        ));
+        let m = materials.len() as u32 - 1;
+        let x = side * (w - 0.01);
+        // Counter-clockwise seen from inside the hall (front = -side along x).
+        let (a, b) = (Vec3::new(x, y - s, z - s), Vec3::new(x, y + s, z + s));
+        let q = if side < 0.0 {
+            [a, Vec3::new(x, y + s, z - s), b, Vec3::new(x, y - s, z + s)]
+        } else {
+            [a, Vec3::new(x, y - s, z + s), b, Vec3::new(x, y + s, z - s)]
+        };
+        tris.extend(quad(q, m));
+    }
+    Generated {
+        triangles: tris,
+        materials,
+        camera: CameraHint {
+            eye: Vec3::new(0.0, 3.0, -1.0),
+            target: Vec3::new(0.0, 2.0, -40.0),
+            up: Vec3::Y,
+            fov: 60.0,
+        },
+    }
 }
 
 pub fn many_lights() -> Generated {
@@ -417,5 +509,7 @@ mod tests {
             .map(|t| t.p0)
             .unwrap();
         assert_eq!(p, [-3.0192213, 4.6667233, -19.55682]);
+        let hall = light_hall();
+        assert_eq!((hall.triangles.len(), hall.materials.len()), (610, 194));
     }
 }
