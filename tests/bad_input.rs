@@ -874,3 +874,27 @@ fn a_file_size_limit_is_reported_and_keeps_the_old_output() {
         "the old output must be untouched"
     );
 }
+
+/// A scene that cannot fit in the memory this process may use is refused at once with the
+/// numbers (under `ulimit -v`), instead of an abort in an allocation.
+#[test]
+fn scenes_too_large_for_memory_are_refused_with_numbers() {
+    let obj = dir().join("never.obj");
+    for args in [
+        format!("generate rocks-50m --out {}", obj.display()),
+        format!(
+            "render --backend cpu --scene rocks-20m --out {}",
+            dir().join("never.png").display()
+        ),
+    ] {
+        let o = Command::new("sh")
+            .arg("-c")
+            .arg(format!("ulimit -v 2000000 && exec \"$0\" {args}"))
+            .arg(env!("CARGO_BIN_EXE_runner"))
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .output()
+            .unwrap();
+        assert_fails_with(&o, "GB of memory, but only");
+    }
+    assert!(!obj.exists());
+}

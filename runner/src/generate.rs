@@ -85,7 +85,10 @@ pub fn builtin(name: &str) -> Option<Result<Generated>> {
         _ => {
             let n = name.strip_prefix("rocks-")?;
             Some(match parse_count(n) {
-                Some(n) => Ok(rocks(n)),
+                Some(n) => {
+                    crate::memory::check(name, n as u64 * crate::memory::BYTES_PER_SCENE_TRIANGLE)
+                        .map(|()| rocks(n))
+                }
                 None => Err(crate::error::Error(format!(
                     "bad triangle count in '{name}' (use e.g. rocks-100k, rocks-1m)"
                 ))),

@@ -10,6 +10,7 @@ pub mod generate;
 pub mod gpu;
 pub mod lights;
 pub mod logging;
+pub mod memory;
 pub mod output;
 pub mod render;
 pub mod restir;

@@ -239,6 +239,10 @@ fn load_mtl_file(path: &Path) -> Result<tobj::MTLLoadResult> {
 
 /// Load an OBJ file (and the MTL files it names, relative to it).
 pub fn load_obj(path: &Path) -> Result<Scene> {
+    if let Ok(md) = std::fs::metadata(path) {
+        let needed = md.len() as f64 * crate::memory::BYTES_PER_OBJ_BYTE;
+        crate::memory::check(&format!("scene '{}'", path.display()), needed as u64)?;
+    }
     let bytes = match read_input_file(path, MAX_OBJ_BYTES) {
         Ok(bytes) => bytes,
         Err(e) => bail!("cannot read scene '{}': {e}", path.display()),
