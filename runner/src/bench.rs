@@ -48,8 +48,8 @@ fn median(v: &[f64]) -> f64 {
     }
 }
 
-/// A rate with the SI prefix that gives it three or four significant digits
-/// ("3.362 G", "4.21 M", "812 k", "12.0").
+/// A number with the SI prefix that leaves three significant digits
+/// ("3.36 G", "42.1 M", "812 k", "12.0").
 pub fn with_unit(x: f64) -> String {
     let (value, prefix) = [(1e9, "G"), (1e6, "M"), (1e3, "k")]
         .iter()

@@ -241,6 +241,10 @@ impl GpuContext {
 
     /// Make the pipelines `integrator` runs, if not made yet.
     fn ensure_pipelines(&mut self, integrator: Integrator) -> Result<()> {
+        // An integrator's pipelines are made together: one present means all are.
+        if self.pipelines.contains_key(integrator.entry_point()) {
+            return Ok(());
+        }
         let entries: Vec<&'static str> = if integrator == Integrator::Restir {
             RestirPass::ENTRY_POINTS
                 .iter()
@@ -250,9 +254,6 @@ impl GpuContext {
             vec![integrator.entry_point()]
         };
         for name in entries {
-            if self.pipelines.contains_key(name) {
-                continue;
-            }
             let layout = if integrator == Integrator::Restir {
                 &self.restir_pipeline_layout
             } else {
@@ -589,10 +590,9 @@ impl GpuBackend {
         if self.restir.is_some() {
             return Ok(());
         }
+        // Their sizes were checked against the limits by `check_fits` in `new`.
         let g_size = self.pixels() * std::mem::size_of::<GBufferTexel>() as u64;
         let r_size = self.pixels() * std::mem::size_of::<Reservoir>() as u64;
-        check_buffer_size(&self.ctx.limits, "the ReSTIR G-buffer", g_size)?;
-        check_buffer_size(&self.ctx.limits, "the ReSTIR reservoir buffer", r_size)?;
         let make = |label: &str, size| {
             self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),

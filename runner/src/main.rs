@@ -88,9 +88,8 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let scene = load_scene(&args.scene)?;
     let mut params = frame_params(&args.scene, &args.kernel, &scene)?;
     // Frame F of a sequence draws the random numbers of samples F·spp onwards.
-    let first_sample = args.first_frame as u64 * args.kernel.spp as u64
-        + args.frames as u64 * args.kernel.spp as u64;
-    if first_sample > u32::MAX as u64 {
+    let samples_end = (args.first_frame as u64 + args.frames as u64) * args.kernel.spp as u64;
+    if samples_end > u32::MAX as u64 {
         runner::bail!("--first-frame, --frames and --spp together exceed 2^32 samples");
     }
     params.frame = args.first_frame * args.kernel.spp;
@@ -113,9 +112,9 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         k.integrator.name(),
         if k.integrator == runner::cli::Integrator::Restir {
             if params.restir_flags & kernels::types::RESTIR_UNBIASED != 0 {
-                " (unbiased 1/Z)"
+                " (unbiased)"
             } else {
-                " (biased 1/M)"
+                " (biased)"
             }
         } else {
             ""
@@ -163,6 +162,16 @@ fn render_command(args: &RenderArgs) -> Result<()> {
 }
 
 fn generate_command(args: &GenerateArgs) -> Result<()> {
+    if args
+        .out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mtl"))
+    {
+        runner::bail!(
+            "--out '{}' names the MTL file; give the OBJ file (the MTL is written beside it)",
+            args.out.display()
+        );
+    }
     let generated = match runner::generate::builtin(&args.name) {
         Some(g) => g?,
         None => runner::bail!(
@@ -177,16 +186,6 @@ fn generate_command(args: &GenerateArgs) -> Result<()> {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     let (obj, mtl) = runner::generate::to_obj(&generated, &mtl_name);
-    if args
-        .out
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("mtl"))
-    {
-        runner::bail!(
-            "--out '{}' names the MTL file; give the OBJ file (the MTL is written beside it)",
-            args.out.display()
-        );
-    }
     runner::output::write_file(&args.out, obj.as_bytes())?;
     runner::output::write_file(&mtl_path, mtl.as_bytes())?;
     eprintln!(

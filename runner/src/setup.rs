@@ -120,7 +120,7 @@ pub fn camera_pose(args: &SceneArgs, scene: &Scene) -> Result<CameraPose> {
             THREE_QUARTER_ELEVATION_DEG.to_radians(),
         );
         let front = args.up_axis.front();
-        let right = front.cross(args.up_axis.up()).normalize() * -1.0;
+        let right = args.up_axis.up().cross(front);
         let dir = (front * az.cos() + right * az.sin()) * el.cos() + args.up_axis.up() * el.sin();
         target + dir * (radius / (0.5 * fov.to_radians()).sin())
     });

@@ -256,11 +256,7 @@ pub fn temporal_pass(
     prev.m = prev.m.min(params.temporal_cap * params.candidates as f32);
 
     let mut rng = pass_rng(params, pixel as u32, STREAM_TEMPORAL);
-    let (p, n, albedo) = (vec3(g.p), vec3(g.n), vec3(g.albedo));
-    let mut target_prev = target_pdf_of(scene, &prev, p, n, albedo);
-    if target_prev > 0.0 && visibility_reuse(params) && !sees(scene, p, n, &prev, rays) {
-        target_prev = 0.0;
-    }
+    let target_prev = target_with_visibility(scene, params, &g, &prev, false, rays);
     let mut out = Reservoir::empty();
     out.merge(&cur, cur.target_pdf, rng.next_f32());
     let from_prev = out.merge(&prev, target_prev, rng.next_f32());

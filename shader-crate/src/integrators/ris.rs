@@ -69,13 +69,20 @@ pub fn initial_candidates(
     r
 }
 
+/// The light point of a finalised reservoir that contributes (a sample and W > 0).
+fn contributing_light(scene: &Scene, r: &Reservoir) -> Option<(Vec3, Vec3, Vec3)> {
+    if !r.has_sample() || r.w <= 0.0 {
+        return None;
+    }
+    Some(light_point(scene, r.triangle, r.b1, r.b2))
+}
+
 /// A finalised reservoir's contribution without visibility: f · Le · G · W.
 pub fn unshadowed_reservoir(scene: &Scene, r: &Reservoir, p: Vec3, n: Vec3, albedo: Vec3) -> Vec3 {
-    if !r.has_sample() || r.w <= 0.0 {
-        return Vec3::ZERO;
+    match contributing_light(scene, r) {
+        Some((q, nq, le)) => unshadowed(p, n, albedo, q, nq, le) * r.w,
+        None => Vec3::ZERO,
     }
-    let (q, nq, le) = light_point(scene, r.triangle, r.b1, r.b2);
-    unshadowed(p, n, albedo, q, nq, le) * r.w
 }
 
 /// Shade a finalised reservoir: f · Le · G · V · W, one shadow ray.
@@ -87,11 +94,13 @@ pub fn shade_reservoir(
     albedo: Vec3,
     rays: &mut u32,
 ) -> Vec3 {
-    let contribution = unshadowed_reservoir(scene, r, p, n, albedo);
+    let Some((q, nq, le)) = contributing_light(scene, r) else {
+        return Vec3::ZERO;
+    };
+    let contribution = unshadowed(p, n, albedo, q, nq, le) * r.w;
     if contribution == Vec3::ZERO {
         return Vec3::ZERO;
     }
-    let (q, nq, _) = light_point(scene, r.triangle, r.b1, r.b2);
     *rays += 1;
     if !scene.visible(p, n, q, nq) {
         return Vec3::ZERO;
