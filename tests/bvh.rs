@@ -10,7 +10,7 @@ use kernels::intersect::{Hit, Ray};
 use kernels::rng::Rng;
 use kernels::types::Triangle;
 use runner::accel::{build_bvh2, build_cwbvh, reorder};
-use runner::setup::default_scene_path;
+use runner::scene::default_scene_path;
 
 fn uniform_dir(rng: &mut Rng) -> Vec3 {
     let z = 1.0 - 2.0 * rng.next_f32();
@@ -209,7 +209,7 @@ fn fuzzer_found_deep_bvh_is_refused_not_mis_traversed() {
     // The default build (CWBVH) renders it; its binary BVH is deeper than BVH2's stack, so
     // a `traversal-bvh2` build refuses it (check_depth) instead of dropping subtrees.
     let image =
-        runner::setup::load_and_render_bytes(&data).expect("renders with the default traversal");
+        runner::fuzz::load_and_render_bytes(&data).expect("renders with the default traversal");
     assert!(image.pixels.iter().all(|p| p.is_finite()));
     let obj = String::from_utf8_lossy(
         &data[..data.iter().position(|&b| b == 0xff).unwrap_or(data.len())],

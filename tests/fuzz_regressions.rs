@@ -4,7 +4,7 @@
 use std::panic::catch_unwind;
 
 use kernels::rng::Rng;
-use runner::setup::load_and_render_bytes;
+use runner::fuzz::load_and_render_bytes;
 
 fn survives(data: &[u8]) -> bool {
     catch_unwind(|| {

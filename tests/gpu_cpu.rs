@@ -1,16 +1,16 @@
 //! The GPU (SPIR-V through wgpu; lavapipe in CI) and the CPU backend run the same kernel
 //! functions with the same random streams: their images must agree pixel by pixel.
 use runner::backend::Backend;
-use runner::cli::{BackendChoice, Integrator, KernelArgs, LightSampling, SceneArgs, UpAxis};
 use runner::cpu::CpuBackend;
 use runner::gpu::{adapters, GpuBackend, GpuContext};
+use runner::integrator::{Integrator, LightSampling};
+use runner::options::{frame_params, KernelOptions, SceneOptions, UpAxis};
 use runner::output::Image;
 use runner::render::render;
-use runner::scene::Scene;
-use runner::setup::{frame_params, load_scene};
+use runner::scene::{load as load_scene, Scene};
 
-fn scene_args(width: u32, height: u32) -> SceneArgs {
-    SceneArgs {
+fn scene_args(width: u32, height: u32) -> SceneOptions {
+    SceneOptions {
         scene: None,
         width,
         height,
@@ -22,8 +22,8 @@ fn scene_args(width: u32, height: u32) -> SceneArgs {
     }
 }
 
-fn kernel_args(integrator: Integrator, spp: u32) -> KernelArgs {
-    KernelArgs {
+fn kernel_args(integrator: Integrator, spp: u32) -> KernelOptions {
+    KernelOptions {
         integrator,
         spp,
         candidates: 8,
@@ -39,7 +39,6 @@ fn kernel_args(integrator: Integrator, spp: u32) -> KernelArgs {
         light_sampling: LightSampling::Power,
         ao_rays: 4,
         ao_distance: None,
-        backend: BackendChoice::Auto,
         seed: 7,
     }
 }

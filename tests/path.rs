@@ -6,8 +6,8 @@ use kernels::camera::look_at;
 use kernels::types::{
     FrameParams, Material, Triangle, LIGHT_SAMPLING_POWER, LIGHT_SAMPLING_UNIFORM,
 };
-use runner::cli::Integrator;
 use runner::cpu::CpuBackend;
+use runner::integrator::Integrator;
 use runner::output::Image;
 use runner::render::render;
 use runner::scene::Scene;
@@ -119,7 +119,7 @@ fn integrators_agree(scene: &Scene, seeds: u32, spp: u32) {
 
 #[test]
 fn pt_nee_mis_agree_on_the_cornell_box() {
-    let scene = runner::scene::load_obj(&runner::setup::default_scene_path()).unwrap();
+    let scene = runner::scene::load_obj(&runner::scene::default_scene_path()).unwrap();
     integrators_agree(&scene, 8, 8);
 }
 

@@ -12,8 +12,8 @@ use kernels::types::{
     FrameParams, Material, INVALID, LIGHT_SAMPLING_POWER, RESTIR_HISTORY_VALID, RESTIR_TEMPORAL,
     RESTIR_UNBIASED, RESTIR_VISIBILITY_REUSE,
 };
-use runner::cli::Integrator;
 use runner::cpu::CpuBackend;
+use runner::integrator::Integrator;
 use runner::render::render;
 use runner::scene::Scene;
 
@@ -316,7 +316,7 @@ fn single_frame_error(
         let mut p = params(&scene, 512, 384, seed, 2, flags);
         p.candidates = candidates;
         p.spatial_passes = spatial_passes;
-        p.spatial_radius = runner::setup::default_spatial_radius(512, 384);
+        p.spatial_radius = runner::options::default_spatial_radius(512, 384);
         let mut cpu = CpuBackend::new(&scene, p.width, p.height);
         let (img, _) = runner::render::render_sequence(
             &mut cpu,

@@ -113,34 +113,37 @@ pub fn build(triangles: &[Triangle]) -> Built<kernels::bvh::BvhNode> {
     return build_cwbvh(triangles);
 }
 
-/// Depth of a binary BVH (a lone root is depth 1).
-pub fn bvh2_depth(nodes: &[Bvh2Node]) -> usize {
+/// Depth of a tree rooted at node 0 whose interior nodes' children are the nodes
+/// `children(node)` (a lone root is depth 1). Indices past the end are skipped.
+fn tree_depth<N>(nodes: &[N], children: impl Fn(&N) -> std::ops::Range<usize>) -> usize {
     let mut deepest = 0;
     let mut stack = vec![(0usize, 1usize)];
     while let Some((i, d)) = stack.pop() {
         let Some(n) = nodes.get(i) else { continue };
         deepest = deepest.max(d);
-        if n.count == 0 {
-            stack.push((n.first as usize, d + 1));
-            stack.push((n.first as usize + 1, d + 1));
-        }
+        stack.extend(children(n).map(|c| (c, d + 1)));
     }
     deepest
 }
 
+/// Depth of a binary BVH (a lone root is depth 1).
+pub fn bvh2_depth(nodes: &[Bvh2Node]) -> usize {
+    tree_depth(nodes, |n| {
+        let first = n.first as usize;
+        if n.count == 0 {
+            first..first + 2
+        } else {
+            0..0
+        }
+    })
+}
+
 /// Depth of a CWBVH in nodes (a lone root is depth 1).
 pub fn cwbvh_depth(nodes: &[CwBvhNode]) -> usize {
-    let mut deepest = 0;
-    let mut stack = vec![(0usize, 1usize)];
-    while let Some((i, d)) = stack.pop() {
-        let Some(n) = nodes.get(i) else { continue };
-        deepest = deepest.max(d);
-        let imask = n.e_imask >> 24;
-        for k in 0..imask.count_ones() as usize {
-            stack.push((n.child_base_idx as usize + k, d + 1));
-        }
-    }
-    deepest
+    tree_depth(nodes, |n| {
+        let first = n.child_base_idx as usize;
+        first..first + n.imask().count_ones() as usize
+    })
 }
 
 /// Refuse BVHs deeper than the kernels' fixed traversal stacks, which would otherwise drop

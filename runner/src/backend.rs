@@ -2,8 +2,14 @@
 //! adding into an accumulation buffer (rgb = sum of samples, a = their count).
 use kernels::types::FrameParams;
 
-use crate::cli::Integrator;
+use clap::{Args, ValueEnum};
+
+use crate::bail;
+use crate::cpu::CpuBackend;
 use crate::error::Result;
+use crate::gpu::{adapters, check_fits, is_software, GpuBackend, GpuContext};
+use crate::integrator::Integrator;
+use crate::scene::Scene;
 
 pub trait Backend {
     /// One line for the user: which device runs the kernels.
@@ -20,6 +26,67 @@ pub trait Backend {
     /// Rays traced since the last `clear` (camera, bounce, shadow and AO rays).
     fn rays_traced(&mut self) -> Result<u64>;
     fn clear(&mut self) -> Result<()>;
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum BackendChoice {
+    /// A hardware GPU that the scene fits on, else the CPU backend (which runs the kernels
+    /// faster than a software Vulkan driver such as lavapipe)
+    Auto,
+    /// A Vulkan adapter (hardware preferred, else a software driver); fail if there is none
+    Gpu,
+    /// The CPU backend: the same kernel functions, rayon over pixels
+    Cpu,
+}
+
+/// Where the kernels run (`render`, `bench` and `view`).
+#[derive(Args, Debug, Clone)]
+pub struct DeviceOptions {
+    /// Where to run: auto, gpu or cpu
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+    pub backend: BackendChoice,
+}
+
+/// Open the backend the user asked for. `auto` takes the first hardware GPU that the scene
+/// fits on, else the CPU backend, and says why on stderr when it is not the GPU.
+pub fn open(
+    choice: BackendChoice,
+    scene: &Scene,
+    width: u32,
+    height: u32,
+) -> Result<Box<dyn Backend>> {
+    if choice == BackendChoice::Cpu {
+        return Ok(Box::new(CpuBackend::new(scene, width, height)));
+    }
+    let list = adapters();
+    let adapter = match choice {
+        BackendChoice::Gpu => match list.first() {
+            Some(a) => a,
+            None => bail!(
+                "no Vulkan adapter with SPIR-V passthrough found (install a Vulkan driver, \
+                 e.g. mesa-vulkan-drivers, or use --backend cpu)"
+            ),
+        },
+        _ => {
+            let fits: Vec<AdapterFit> = list
+                .iter()
+                .map(|a| AdapterFit {
+                    name: a.get_info().name,
+                    software: is_software(a),
+                    fits: check_fits(&a.limits(), scene, width, height),
+                })
+                .collect();
+            match choose_auto(&fits) {
+                AutoChoice::Gpu(i) => &list[i],
+                AutoChoice::Cpu(why) => {
+                    eprintln!("note: {why}");
+                    return Ok(Box::new(CpuBackend::new(scene, width, height)));
+                }
+            }
+        }
+    };
+    let ctx = GpuContext::new(adapter)?;
+    Ok(Box::new(GpuBackend::new(ctx, scene, width, height)?))
 }
 
 /// A Vulkan adapter as `--backend auto` weighs it.

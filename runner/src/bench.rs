@@ -2,16 +2,20 @@
 //! per pixel; its time is the sum of its passes' device times (GPU timestamp queries, or
 //! wall clock on the CPU backend). Rays counts camera, bounce, shadow and AO rays, as
 //! traced by the kernels themselves.
+use clap::Args;
+
+use crate::backend::DeviceOptions;
+use crate::options::{KernelOptions, SceneOptions};
 use std::fmt::Write as _;
 
 use indicatif::ProgressBar;
 use kernels::types::FrameParams;
 
 use crate::backend::Backend;
-use crate::cli::{BenchArgs, KernelArgs};
 use crate::error::Result;
-use crate::render::{accumulate, open_backend, RenderStats};
-use crate::setup::{frame_params, load_scene};
+use crate::options::frame_params;
+use crate::render::{accumulate, RenderStats};
+use crate::scene::load as load_scene;
 
 #[derive(Clone, Debug)]
 pub struct BenchReport {
@@ -141,7 +145,11 @@ impl BenchReport {
 /// One timed frame: the GPU work of `render` without reading anything back. Reading the
 /// image back after every frame left the GPU idle most of the time, and an H100 then lowers
 /// its clocks within seconds (seen: 1980 → 420 MHz, timestamps up to 5x longer).
-fn frame(backend: &mut dyn Backend, k: &KernelArgs, params: &FrameParams) -> Result<RenderStats> {
+fn frame(
+    backend: &mut dyn Backend,
+    k: &KernelOptions,
+    params: &FrameParams,
+) -> Result<RenderStats> {
     backend.clear()?;
     let mut stats = RenderStats::default();
     accumulate(
@@ -168,7 +176,8 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
     }
     let scene = load_scene(&args.scene)?;
     let params = frame_params(&args.scene, &args.kernel, &scene)?;
-    let mut backend = open_backend(args.kernel.backend, &scene, params.width, params.height)?;
+    let mut backend =
+        crate::backend::open(args.device.backend, &scene, params.width, params.height)?;
     let k = &args.kernel;
     let mut frame_ms = Vec::new();
     let mut pass_ms = Vec::new();
@@ -238,4 +247,24 @@ mod tests {
         assert_eq!(with_unit(12.0), "12.0");
         assert_eq!(with_unit(0.5), "0.50");
     }
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct BenchArgs {
+    #[command(flatten)]
+    pub scene: SceneOptions,
+    #[command(flatten)]
+    pub kernel: KernelOptions,
+    #[command(flatten)]
+    pub device: DeviceOptions,
+    /// Timed renders (after the warm-up)
+    #[arg(long, default_value_t = 5, value_name = "N")]
+    pub runs: u32,
+    /// Untimed rendering before the timed runs, in seconds (at least one render): an idle
+    /// GPU needs a while to raise its clocks
+    #[arg(long, default_value_t = 1.0, value_name = "SECONDS")]
+    pub warmup: f64,
+    /// Print one JSON object instead of the table
+    #[arg(long)]
+    pub json: bool,
 }

@@ -2,15 +2,15 @@
 //! ReSTIR runs its passes one after another over the whole image, like the GPU dispatches.
 use std::time::Instant;
 
-use kernels::integrators::{ao, path, restir};
+use kernels::integrators::restir;
 use kernels::reservoir::Reservoir;
 use kernels::types::{FrameParams, GBufferTexel};
 use rayon::prelude::*;
 
 use crate::backend::Backend;
-use crate::cli::Integrator;
 use crate::error::Result;
-use crate::restir::{RestirPass, RestirSchedule};
+use crate::integrator::{Integrator, Kernel};
+use crate::restir::{RestirPass, RestirState};
 use crate::scene::Scene;
 
 pub struct CpuBackend {
@@ -18,16 +18,9 @@ pub struct CpuBackend {
     width: u32,
     accum: Vec<[f32; 4]>,
     ray_counts: Vec<u32>,
-    restir: RestirBuffers,
-}
-
-/// G-buffers and reservoirs, allocated on the first ReSTIR frame.
-#[derive(Default)]
-struct RestirBuffers {
-    gbuffers: [Vec<GBufferTexel>; 2],
-    reservoirs: [Vec<Reservoir>; 3],
-    schedule: RestirSchedule,
-    pass_ms: Vec<(&'static str, f64)>,
+    /// Made on the first ReSTIR frame.
+    restir: Option<RestirState<Vec<GBufferTexel>, Vec<Reservoir>>>,
+    restir_pass_ms: Vec<(&'static str, f64)>,
 }
 
 /// Run `f(x, y, out, rays)` for every pixel in parallel, rows at a time.
@@ -58,33 +51,24 @@ impl CpuBackend {
             width,
             accum: vec![[0.0; 4]; n],
             ray_counts: vec![0; n],
-            restir: RestirBuffers::default(),
+            restir: None,
+            restir_pass_ms: Vec::new(),
         }
     }
 
     fn restir_frame(&mut self, params: &FrameParams) {
         let n = self.accum.len();
-        let st = &mut self.restir;
-        if st.gbuffers[0].len() != n {
-            st.gbuffers = [
-                vec![GBufferTexel::default(); n],
-                vec![GBufferTexel::default(); n],
-            ];
-            st.reservoirs = [
-                vec![Reservoir::empty(); n],
-                vec![Reservoir::empty(); n],
-                vec![Reservoir::empty(); n],
-            ];
-        }
-        st.pass_ms.clear();
+        let st = self.restir.get_or_insert_with(|| {
+            RestirState::new(
+                |_| vec![GBufferTexel::default(); n],
+                |_| vec![Reservoir::empty(); n],
+            )
+        });
+        self.restir_pass_ms.clear();
         let scene = self.scene.kernel();
         let width = self.width;
-        for (pass, sl) in st.schedule.frame(params.spatial_passes) {
+        for (pass, sl, p) in st.frame(params) {
             let start = Instant::now();
-            let mut p = *params;
-            if let RestirPass::Spatial(i) = pass {
-                p.spatial_pass = i;
-            }
             let p = &p;
             // Take the written buffer out so the read ones can be borrowed alongside.
             let mut g_cur = std::mem::take(&mut st.gbuffers[sl.g_cur]);
@@ -104,7 +88,6 @@ impl CpuBackend {
                         |x, y, acc, rays| {
                             let i = (y * width + x) as usize;
                             let l = restir::shade_pass(&scene, p, &g[i], &r[i], i as u32, rays);
-                            let l = if l.is_finite() { l } else { glam::Vec3::ZERO };
                             *acc = [acc[0] + l.x, acc[1] + l.y, acc[2] + l.z, acc[3] + 1.0];
                         },
                     );
@@ -130,7 +113,7 @@ impl CpuBackend {
                 }
             }
             st.gbuffers[sl.g_cur] = g_cur;
-            st.pass_ms
+            self.restir_pass_ms
                 .push((pass.name(), start.elapsed().as_secs_f64() * 1e3));
         }
     }
@@ -143,25 +126,17 @@ impl Backend for CpuBackend {
 
     fn pass(&mut self, integrator: Integrator, params: &FrameParams) -> Result<f64> {
         let start = Instant::now();
-        if integrator == Integrator::Restir {
+        let Kernel::Image { pixel, .. } = integrator.kernel() else {
             self.restir_frame(params);
             return Ok(start.elapsed().as_secs_f64() * 1e3);
-        }
+        };
         let scene = self.scene.kernel();
         per_pixel(
             self.width,
             &mut self.accum,
             &mut self.ray_counts,
             |x, y, acc, rays| {
-                let r = match integrator {
-                    Integrator::Ao => ao::render_pixel(&scene, params, x, y),
-                    Integrator::Pt => path::render_pixel(&scene, params, x, y, path::BSDF),
-                    Integrator::Nee => path::render_pixel(&scene, params, x, y, path::NEE),
-                    Integrator::Mis => path::render_pixel(&scene, params, x, y, path::MIS),
-                    Integrator::Ris | Integrator::Restir => {
-                        path::render_pixel(&scene, params, x, y, path::RIS)
-                    }
-                };
+                let r = pixel(&scene, params, x, y);
                 *acc = [
                     acc[0] + r.sum.x,
                     acc[1] + r.sum.y,
@@ -175,7 +150,7 @@ impl Backend for CpuBackend {
     }
 
     fn pass_breakdown(&self) -> Vec<(&'static str, f64)> {
-        self.restir.pass_ms.clone()
+        self.restir_pass_ms.clone()
     }
 
     fn read_accumulation(&mut self) -> Result<Vec<[f32; 4]>> {

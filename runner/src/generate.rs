@@ -3,6 +3,9 @@
 //!   over a floor with occluders (the course's case where plain NEE struggles).
 //! - `rocks-N`: N triangles (e.g. rocks-1m) of displaced icospheres scattered over a
 //!   ground, with real depth complexity, lit by one large area light.
+use std::path::PathBuf;
+
+use clap::Args;
 use std::collections::HashMap;
 use std::fmt::Write as _;
 
@@ -515,4 +518,46 @@ mod tests {
         let hall = light_hall();
         assert_eq!((hall.triangles.len(), hall.materials.len()), (610, 194));
     }
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct GenerateArgs {
+    /// Built-in scene: many-lights, light-hall or rocks-<N> (e.g. rocks-1m)
+    pub name: String,
+    /// Output OBJ file; the MTL file is written next to it
+    #[arg(long, value_name = "FILE.obj")]
+    pub out: PathBuf,
+}
+
+/// `runner generate`: write a built-in scene as OBJ + MTL.
+pub fn run(args: &GenerateArgs) -> Result<()> {
+    if args
+        .out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mtl"))
+    {
+        crate::bail!(
+            "--out '{}' names the MTL file; give the OBJ file (the MTL is written beside it)",
+            args.out.display()
+        );
+    }
+    let generated = match builtin(&args.name) {
+        Some(g) => g?,
+        None => crate::bail!("no built-in scene '{}' ({})", args.name, BUILTIN_NAMES),
+    };
+    let mtl_path = args.out.with_extension("mtl");
+    let mtl_name = mtl_path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let (obj, mtl) = to_obj(&generated, &mtl_name);
+    crate::output::write_file(&args.out, obj.as_bytes())?;
+    crate::output::write_file(&mtl_path, mtl.as_bytes())?;
+    eprintln!(
+        "wrote {} and {} ({} triangles)",
+        args.out.display(),
+        mtl_path.display(),
+        generated.triangles.len()
+    );
+    Ok(())
 }

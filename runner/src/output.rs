@@ -1,4 +1,7 @@
 //! Image output: PNG (sRGB-encoded, clamped to [0, 1]) or OpenEXR (linear float RGB).
+use std::path::PathBuf;
+
+use clap::Args;
 use std::path::Path;
 
 use glam::Vec3;
@@ -230,4 +233,28 @@ pub fn compare(image: &Image, reference: &Image) -> Result<ImageError> {
         max_abs,
         identical: same as f64 / n,
     })
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct CompareArgs {
+    /// The image to judge (.exr keeps linear values; .png is decoded from sRGB)
+    pub image: PathBuf,
+    /// The reference image, same size
+    pub reference: PathBuf,
+}
+
+/// `runner compare`: the one line of error measures it prints.
+pub fn compare_report(args: &CompareArgs) -> Result<String> {
+    let image = read_image(&args.image)?;
+    let reference = read_image(&args.reference)?;
+    let e = compare(&image, &reference)?;
+    Ok(format!(
+        "rmse {:.6}  relmse {:.6}  max_abs {:.6}  identical {:.2}%  (mean {:.5} vs {:.5})",
+        e.rmse,
+        e.rel_mse,
+        e.max_abs,
+        100.0 * e.identical,
+        image.mean().dot(glam::Vec3::splat(1.0 / 3.0)),
+        reference.mean().dot(glam::Vec3::splat(1.0 / 3.0)),
+    ))
 }

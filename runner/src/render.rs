@@ -1,57 +1,117 @@
 //! The render loop: pick a backend, run the kernel pass by pass with a progress bar,
 //! and turn the accumulation into an image.
+use std::path::PathBuf;
+
+use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use kernels::types::FrameParams;
 
-use crate::backend::{choose_auto, AdapterFit, AutoChoice, Backend};
-use crate::bail;
-use crate::cli::{BackendChoice, Integrator};
-use crate::cpu::CpuBackend;
-use crate::error::Result;
-use crate::gpu::{adapters, check_fits, is_software, GpuBackend, GpuContext};
-use crate::output::Image;
-use crate::scene::Scene;
+use crate::backend::{Backend, DeviceOptions};
+use crate::error::{Context, Result};
+use crate::integrator::Integrator;
+use crate::options::{KernelOptions, SceneOptions};
+use crate::output::{check_writable, write_image, Image};
+use crate::restir::continue_history;
 
-/// Open the backend the user asked for. `auto` takes the first hardware GPU that the scene
-/// fits on, else the CPU backend, and says why on stderr when it is not the GPU.
-pub fn open_backend(
-    choice: BackendChoice,
-    scene: &Scene,
-    width: u32,
-    height: u32,
-) -> Result<Box<dyn Backend>> {
-    if choice == BackendChoice::Cpu {
-        return Ok(Box::new(CpuBackend::new(scene, width, height)));
+/// `runner render`: load, render the frames, write `--out` (and `--out-dir`), report.
+pub fn run(args: &RenderArgs) -> Result<()> {
+    let started = std::time::Instant::now();
+    let format = check_writable(&args.out)?;
+    if args.frames == 0 {
+        crate::bail!("--frames must be at least 1");
     }
-    let list = adapters();
-    let adapter = match choice {
-        BackendChoice::Gpu => match list.first() {
-            Some(a) => a,
-            None => bail!(
-                "no Vulkan adapter with SPIR-V passthrough found (install a Vulkan driver, \
-                 e.g. mesa-vulkan-drivers, or use --backend cpu)"
-            ),
-        },
-        _ => {
-            let fits: Vec<AdapterFit> = list
-                .iter()
-                .map(|a| AdapterFit {
-                    name: a.get_info().name,
-                    software: is_software(a),
-                    fits: check_fits(&a.limits(), scene, width, height),
-                })
-                .collect();
-            match choose_auto(&fits) {
-                AutoChoice::Gpu(i) => &list[i],
-                AutoChoice::Cpu(why) => {
-                    eprintln!("note: {why}");
-                    return Ok(Box::new(CpuBackend::new(scene, width, height)));
-                }
-            }
+    if !args.orbit.is_finite() {
+        crate::bail!("--orbit must be a finite number of degrees");
+    }
+    if let Some(scene_file) = args.scene.scene.as_ref().filter(|p| p.is_file()) {
+        if std::fs::canonicalize(scene_file).ok() == std::fs::canonicalize(&args.out).ok() {
+            crate::bail!(
+                "--out '{}' is the scene file itself; it would be overwritten",
+                args.out.display()
+            );
         }
+    }
+    if let Some(dir) = args.out_dir.as_ref().filter(|d| d.exists() && !d.is_dir()) {
+        crate::bail!(
+            "--out-dir '{}' exists and is not a directory",
+            dir.display()
+        );
+    }
+    let scene = crate::scene::load(&args.scene)?;
+    let mut params = crate::options::frame_params(&args.scene, &args.kernel, &scene)?;
+    // Frame F of a sequence draws the random numbers of samples F·spp onwards.
+    let samples_end = (args.first_frame as u64 + args.frames as u64) * args.kernel.spp as u64;
+    if samples_end > u32::MAX as u64 {
+        crate::bail!("--first-frame, --frames and --spp together exceed 2^32 samples");
+    }
+    params.frame = args.first_frame * args.kernel.spp;
+    params.sample_offset = args.first_frame * args.kernel.spp;
+    // Created only once the scene has loaded: a run that fails on its input leaves nothing.
+    if let Some(dir) = &args.out_dir {
+        std::fs::create_dir_all(dir)
+            .context(|| format!("cannot create --out-dir '{}'", dir.display()))?;
+    }
+    let mut backend =
+        crate::backend::open(args.device.backend, &scene, params.width, params.height)?;
+    let k = &args.kernel;
+    eprintln!(
+        "{} triangles ({} emissive), {}x{}, {} spp x {} frame(s), integrator {}{}, BVH {}, backend {}",
+        scene.triangles.len(),
+        scene.lights.len(),
+        params.width,
+        params.height,
+        k.spp,
+        args.frames,
+        k.integrator.name(),
+        if k.integrator == Integrator::Restir {
+            if params.restir_flags & kernels::types::RESTIR_UNBIASED != 0 {
+                " (unbiased)"
+            } else {
+                " (biased)"
+            }
+        } else {
+            ""
+        },
+        kernels::bvh::TRAVERSAL,
+        backend.describe()
+    );
+    let ext = match format {
+        crate::output::OutputFormat::Png => "png",
+        crate::output::OutputFormat::Exr => "exr",
     };
-    let ctx = GpuContext::new(adapter)?;
-    Ok(Box::new(GpuBackend::new(ctx, scene, width, height)?))
+    let (image, stats) = render_sequence(
+        backend.as_mut(),
+        k.integrator,
+        &params,
+        k.spp,
+        args.frames,
+        args.accumulate,
+        |f| {
+            crate::camera::orbit_camera(
+                &args.scene,
+                &scene,
+                args.orbit * (args.first_frame as u64 + f as u64) as f32,
+            )
+        },
+        |f, image| match &args.out_dir {
+            Some(dir) => write_image(&dir.join(format!("frame_{f:04}.{ext}")), image),
+            None => Ok(()),
+        },
+    )?;
+    write_image(&args.out, &image)?;
+    let kernel_s = stats.pass_ms.iter().sum::<f64>() * 1e-3;
+    eprintln!(
+        "wrote {} in {:.2} s: {}x{}, {} spp x {} frame(s), {} rays ({} rays/s over {kernel_s:.2} s of kernel time)",
+        args.out.display(),
+        started.elapsed().as_secs_f64(),
+        params.width,
+        params.height,
+        k.spp,
+        args.frames,
+        crate::bench::with_unit(stats.rays as f64),
+        crate::bench::with_unit(stats.rays as f64 / kernel_s.max(1e-9)),
+    );
+    Ok(())
 }
 
 /// Timing of a finished render.
@@ -97,8 +157,8 @@ pub fn pass_params(
             ..*params
         };
         if done > 0 {
-            p.restir_flags |= kernels::types::RESTIR_HISTORY_VALID;
-            p.prev_camera = p.camera;
+            let camera = p.camera;
+            continue_history(&mut p, camera);
         }
         p
     } else {
@@ -187,13 +247,13 @@ pub fn render_sequence(
     for f in 0..frames {
         let mut p = *params;
         p.camera = camera_of(f)?;
-        p.prev_camera = prev_camera.unwrap_or(p.camera);
+        p.prev_camera = p.camera;
+        if let Some(prev) = prev_camera {
+            continue_history(&mut p, prev);
+        }
         prev_camera = Some(p.camera);
         p.frame = params.frame + f * spp;
         p.sample_offset = params.sample_offset + f * spp;
-        if f > 0 {
-            p.restir_flags |= kernels::types::RESTIR_HISTORY_VALID;
-        }
         backend.clear()?; // each frame accumulates on its own; `average` sums them below
         accumulate(backend, integrator, &p, spp, 1, &bar, &mut stats)?;
         let accum = backend.read_accumulation()?;
@@ -214,4 +274,39 @@ pub fn render_sequence(
         Image::from_accumulation(params.width, params.height, &sum),
         stats,
     ))
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    pub scene: SceneOptions,
+    #[command(flatten)]
+    pub kernel: KernelOptions,
+    #[command(flatten)]
+    pub device: DeviceOptions,
+    /// Output image: .png (sRGB, clamped) or .exr (linear float RGB)
+    #[arg(long, default_value = "out.png", value_name = "FILE")]
+    pub out: PathBuf,
+    /// Frames to render in sequence (ReSTIR reuses each frame's reservoirs in the next;
+    /// for ReSTIR every sample of --spp is itself a frame of the pipeline)
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub frames: u32,
+    /// Move the camera around --target by this many degrees per frame (about --up)
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        value_name = "DEG",
+        allow_hyphen_values = true
+    )]
+    pub orbit: f32,
+    /// Start the sequence at this frame: its camera (--orbit) and random numbers are those
+    /// of frame F of a longer sequence (e.g. a converged reference for one frame of an orbit)
+    #[arg(long, default_value_t = 0, value_name = "F")]
+    pub first_frame: u32,
+    /// Average all frames into --out (default: --out is the last frame)
+    #[arg(long)]
+    pub accumulate: bool,
+    /// Also write every frame to this directory as frame_NNNN.<ext of --out>
+    #[arg(long, value_name = "DIR")]
+    pub out_dir: Option<PathBuf>,
 }

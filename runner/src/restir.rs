@@ -5,6 +5,8 @@
 //! passes only improve what this frame shows. (Feeding spatial results back made every
 //! pixel's history a blend of its neighbours' and compounded the biased mode's darkening
 //! frame after frame; it also let one unlucky visibility test empty a whole history.)
+use kernels::types::{Camera, FrameParams, RESTIR_HISTORY_VALID};
+
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum RestirPass {
     Primary,
@@ -96,6 +98,53 @@ impl RestirSchedule {
         self.parity = 1 - self.parity;
         plan
     }
+}
+
+/// ReSTIR's host state, one owner for both backends: two G-buffers, three reservoir buffers
+/// and the schedule that rotates them. `G` and `R` are the backend's buffers (`Vec`s on
+/// the CPU, `wgpu::Buffer`s on the GPU), made on the first ReSTIR frame.
+pub struct RestirState<G, R> {
+    pub gbuffers: [G; 2],
+    pub reservoirs: [R; 3],
+    schedule: RestirSchedule,
+}
+
+impl<G, R> RestirState<G, R> {
+    /// Buffers from `gbuffer(label)` and `reservoirs(label)`, history empty.
+    pub fn new(gbuffer: impl Fn(&str) -> G, reservoirs: impl Fn(&str) -> R) -> Self {
+        Self {
+            gbuffers: [gbuffer("gbuffer a"), gbuffer("gbuffer b")],
+            reservoirs: [
+                reservoirs("reservoirs a"),
+                reservoirs("reservoirs b"),
+                reservoirs("reservoirs c"),
+            ],
+            schedule: RestirSchedule::default(),
+        }
+    }
+
+    /// The passes of the next frame with their buffers, and each pass's parameters.
+    pub fn frame(&mut self, params: &FrameParams) -> Vec<(RestirPass, Slots, FrameParams)> {
+        self.schedule
+            .frame(params.spatial_passes)
+            .into_iter()
+            .map(|(pass, slots)| {
+                let mut p = *params;
+                if let RestirPass::Spatial(i) = pass {
+                    p.spatial_pass = i;
+                }
+                (pass, slots, p)
+            })
+            .collect()
+    }
+}
+
+/// A frame that continues from the one before, seen then from `prev_camera`: its temporal
+/// pass may reuse that frame's reservoirs (reprojected). The first frame of a sequence, or
+/// one after the history was dropped, has no such flag.
+pub fn continue_history(params: &mut FrameParams, prev_camera: Camera) {
+    params.restir_flags |= RESTIR_HISTORY_VALID;
+    params.prev_camera = prev_camera;
 }
 
 #[cfg(test)]

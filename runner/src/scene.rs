@@ -1,7 +1,7 @@
 //! Scenes: triangles with materials, the list of emitters, bounds and an optional default
 //! camera. Loaded from OBJ + MTL with tobj (triangulated); `Kd` is the Lambertian albedo,
 //! `Ke` the radiance emitted from the front (counter-clockwise) side.
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 use kernels::bvh::BvhNode;
@@ -9,6 +9,7 @@ use kernels::types::{Light, Material, Triangle};
 
 use crate::bail;
 use crate::error::{Error, Result};
+use crate::options::SceneOptions;
 
 /// Albedo of surfaces with no material (missing MTL or no `usemtl`).
 pub const DEFAULT_ALBEDO: f32 = 0.8;
@@ -80,8 +81,8 @@ impl Scene {
     }
 
     /// The buffers as the kernels see them.
-    pub fn kernel(&self) -> kernels::bvh::Scene<'_> {
-        kernels::bvh::Scene {
+    pub fn kernel(&self) -> kernels::bvh::SceneBuffers<'_> {
+        kernels::bvh::SceneBuffers {
             triangles: &self.triangles,
             materials: &self.materials,
             nodes: &self.nodes,
@@ -548,11 +549,14 @@ fn parse_camera_hint(name: &str, text: &str) -> Result<Option<CameraHint>> {
     for kv in line.trim_start()["# camera:".len()..].split_whitespace() {
         let (k, v) = kv.split_once('=').ok_or_else(bad)?;
         match k {
-            "eye" => (hint.eye, has_eye) = (crate::cli::parse_vec3(v).map_err(|_| bad())?, true),
-            "target" => {
-                (hint.target, has_target) = (crate::cli::parse_vec3(v).map_err(|_| bad())?, true)
+            "eye" => {
+                (hint.eye, has_eye) = (crate::options::parse_vec3(v).map_err(|_| bad())?, true)
             }
-            "up" => hint.up = crate::cli::parse_vec3(v).map_err(|_| bad())?,
+            "target" => {
+                (hint.target, has_target) =
+                    (crate::options::parse_vec3(v).map_err(|_| bad())?, true)
+            }
+            "up" => hint.up = crate::options::parse_vec3(v).map_err(|_| bad())?,
             "fov" => hint.fov = v.parse().map_err(|_| bad())?,
             _ => return Err(bad()),
         }
@@ -564,4 +568,46 @@ fn parse_camera_hint(name: &str, text: &str) -> Result<Option<CameraHint>> {
         );
     }
     Ok(Some(hint))
+}
+
+/// The Cornell box in the source tree (tests load it as a file; the binary embeds it).
+pub fn default_scene_path() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/cornell_box.obj")
+}
+
+/// Load the scene named on the command line: an OBJ file, or a built-in scene's name
+/// (see `generate`); the Cornell box by default. Prints the scene's warnings.
+pub fn load(args: &SceneOptions) -> Result<Scene> {
+    let path = args
+        .scene
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("cornell-box"));
+    let name = path.to_string_lossy();
+    let scene = if path.is_file()
+        || path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("obj"))
+    {
+        load_obj(&path)?
+    } else if name == "cornell-box" {
+        cornell_box()?
+    } else {
+        match crate::generate::builtin(&name) {
+            Some(generated) => generated?.into_scene()?,
+            None => crate::generate::unknown_scene(&name)?.into_scene()?,
+        }
+    };
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    log::debug!(
+        "scene '{name}': {} triangles, {} emissive, {} materials; {} BVH: {} nodes in {:.1} ms",
+        scene.triangles.len(),
+        scene.lights.len(),
+        scene.materials.len(),
+        kernels::bvh::TRAVERSAL,
+        scene.nodes.len(),
+        scene.bvh_build_time.as_secs_f64() * 1e3
+    );
+    Ok(scene)
 }

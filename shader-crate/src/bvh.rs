@@ -1,9 +1,10 @@
 //! Scene queries: closest hit and any hit (shadow/AO rays) by brute force, over a binary
-//! BVH, or over a compressed 8-wide BVH (CWBVH). `Scene` uses the traversal picked by cargo
+//! BVH, or over a compressed 8-wide BVH (CWBVH). `SceneBuffers` uses the traversal picked by cargo
 //! feature; every variant answers the same question, and the tests hold them to it.
 use crate::glam::Vec3;
 use crate::intersect::{intersect_aabb, Hit, Ray, TriangleTester};
 use crate::math::vec3;
+use crate::types::cwbvh_meta::{self, FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
 use crate::types::{Bvh2Node, CwBvhNode, Light, Material, Triangle};
 
 /// The node type of the traversal compiled in.
@@ -27,16 +28,20 @@ pub const BVH2_STACK: usize = 64;
 /// CWBVH stack of node groups: 8-wide trees are shallow (obvhs validates depth < 32).
 pub const CWBVH_STACK: usize = 32;
 
+/// Shadow rays stop this fraction of the way to the light's (offset) point, so that the
+/// light's own triangle never counts as an occluder.
+const SHADOW_RAY_END: f32 = 0.9999;
+
 /// The scene buffers a kernel reads, bundled so integrators take one argument.
 #[derive(Copy, Clone)]
-pub struct Scene<'a> {
+pub struct SceneBuffers<'a> {
     pub triangles: &'a [Triangle],
     pub materials: &'a [Material],
     pub nodes: &'a [BvhNode],
     pub lights: &'a [Light],
 }
 
-impl<'a> Scene<'a> {
+impl<'a> SceneBuffers<'a> {
     pub fn closest_hit(&self, ray: &Ray, t_max: f32) -> Hit {
         #[cfg(feature = "traversal-brute-force")]
         return brute_force_closest_hit(self.triangles, ray, t_max);
@@ -62,7 +67,7 @@ impl<'a> Scene<'a> {
         let target = offset_ray_origin(q, nq);
         let d = target - origin;
         let dist = d.length();
-        !self.any_hit(&Ray::new(origin, d / dist), dist * 0.9999)
+        !self.any_hit(&Ray::new(origin, d / dist), dist * SHADOW_RAY_END)
     }
 
     pub fn material_of(&self, prim: u32) -> Material {
@@ -247,13 +252,12 @@ fn cwbvh_half_hits(ray: &NodeRay, meta4: u32, x: (u32, u32), y: (u32, u32), z: (
             let t_near = near.max_element().max(0.0);
             let t_far = far.min_element().min(ray.t_max);
             if t_near <= t_far {
-                if meta & 0x18 == 0x18 {
-                    // Interior child: meta = 24 + slot. XOR with the ray octant orders the
+                if cwbvh_meta::is_interior(meta) {
+                    // Interior child: index = 24 + slot. XOR with the ray octant orders the
                     // children front to back when popped highest bit first.
-                    mask |= 1 << ((meta & 31) ^ ray.oct_inv);
+                    mask |= 1 << (cwbvh_meta::index(meta) ^ ray.oct_inv);
                 } else {
-                    // Leaf child: unary triangle count in the top 3 bits, offset below.
-                    mask |= (meta >> 5) << (meta & 31);
+                    mask |= cwbvh_meta::triangle_bits(meta) << cwbvh_meta::index(meta);
                 }
             }
         }
@@ -268,15 +272,9 @@ fn cwbvh_half_hits(ray: &NodeRay, meta4: u32, x: (u32, u32), y: (u32, u32), z: (
 /// are picked once per node from the ray's direction signs, and the child bytes are
 /// decoded a word (4 children) at a time.
 fn cwbvh_node_hits(node: &CwBvhNode, origin: Vec3, inv_dir: Vec3, oct_inv: u32, t_max: f32) -> u32 {
-    // Child box = p + 2^(e - 127) · q: transform the ray into the node's quantised grid.
-    let e = node.e_imask;
-    let scale = Vec3::new(
-        f32::from_bits((e & 0xff) << 23),
-        f32::from_bits(((e >> 8) & 0xff) << 23),
-        f32::from_bits(((e >> 16) & 0xff) << 23),
-    );
+    // Child box = p + scale · q: transform the ray into the node's quantised grid.
     let ray = NodeRay {
-        slope: scale * inv_dir,
+        slope: node.scale() * inv_dir,
         offset: (vec3(node.p) - origin) * inv_dir,
         negative: [inv_dir.x < 0.0, inv_dir.y < 0.0, inv_dir.z < 0.0],
         oct_inv,
@@ -321,19 +319,19 @@ pub fn cwbvh_traverse(
     let mut sp = 0usize;
     // The root is the only "interior child" of a virtual group at node 0.
     let mut group_base = 0u32;
-    let mut group_bits = 0x8000_0000u32;
+    let mut group_bits = 1u32 << 31;
     loop {
         let mut tri_base = 0u32;
         let mut tri_bits = 0u32;
-        if group_bits & 0xff00_0000 != 0 {
+        if group_bits & INTERIOR_HITS != 0 {
             let slot_bit = first_bit_high(group_bits);
             group_bits &= !(1u32 << slot_bit);
             // Interior children are stored contiguously in slot order: the node's index is
-            // the number of interior siblings (imask, low byte) in lower slots.
-            let slot = (slot_bit - 24) ^ oct_inv;
+            // the number of interior siblings (imask, the group's low byte) in lower slots.
+            let slot = (slot_bit - FIRST_INTERIOR_BIT) ^ oct_inv;
             let relative = (group_bits & 0xff & !(0xffff_ffffu32 << slot)).count_ones();
             let child = group_base + relative;
-            if group_bits & 0xff00_0000 != 0 && sp < CWBVH_STACK {
+            if group_bits & INTERIOR_HITS != 0 && sp < CWBVH_STACK {
                 stack_base[sp] = group_base;
                 stack_bits[sp] = group_bits;
                 sp += 1;
@@ -341,9 +339,9 @@ pub fn cwbvh_traverse(
             let node = nodes[child as usize];
             let hits = cwbvh_node_hits(&node, ray.origin, inv_dir, oct_inv, hit.t);
             group_base = node.child_base_idx;
-            group_bits = (hits & 0xff00_0000) | (node.e_imask >> 24);
+            group_bits = (hits & INTERIOR_HITS) | node.imask();
             tri_base = node.primitive_base_idx;
-            tri_bits = hits & 0x00ff_ffff;
+            tri_bits = hits & TRIANGLE_HITS;
         }
         while tri_bits != 0 {
             let k = first_bit_high(tri_bits);
@@ -352,7 +350,7 @@ pub fn cwbvh_traverse(
                 return hit;
             }
         }
-        if group_bits & 0xff00_0000 == 0 {
+        if group_bits & INTERIOR_HITS == 0 {
             if sp == 0 {
                 break;
             }

@@ -13,9 +13,6 @@ impl Ray {
     pub fn new(origin: Vec3, dir: Vec3) -> Self {
         Self { origin, dir }
     }
-    pub fn at(&self, t: f32) -> Vec3 {
-        self.origin + self.dir * t
-    }
 }
 
 /// Closest hit so far: `prim == INVALID` means no hit, and then `t` is the search limit.

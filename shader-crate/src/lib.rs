@@ -5,6 +5,7 @@
 #![cfg_attr(target_arch = "spirv", no_std)]
 #![deny(warnings)]
 
+pub mod bindings;
 pub mod bvh;
 pub mod camera;
 pub mod integrators;

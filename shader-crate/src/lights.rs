@@ -1,6 +1,6 @@
 //! Emitters: picking a light triangle (uniformly, as in the course, or in proportion to
 //! power with an alias table), a uniform point on it, and the pdfs that NEE and MIS need.
-use crate::bvh::Scene;
+use crate::bvh::SceneBuffers;
 use crate::glam::Vec3;
 use crate::rng::Rng;
 use crate::sampling::uniform_triangle;
@@ -51,7 +51,7 @@ pub fn selection_pdf(lights: &[Light], mode: u32, index: u32) -> f32 {
 }
 
 /// Pick a light triangle and a uniform point on it (four draws from `rng`).
-pub fn sample_light(scene: &Scene, mode: u32, rng: &mut Rng) -> LightSample {
+pub fn sample_light(scene: &SceneBuffers, mode: u32, rng: &mut Rng) -> LightSample {
     let index = select_light(scene.lights, mode, rng.next_u32(), rng.next_f32());
     let triangle = scene.lights[index as usize].triangle;
     let tri = scene.triangles[triangle as usize];
@@ -70,7 +70,7 @@ pub fn sample_light(scene: &Scene, mode: u32, rng: &mut Rng) -> LightSample {
 }
 
 /// Area density with which `sample_light` produces a point on `triangle` (an emitter).
-pub fn light_pdf_area(scene: &Scene, mode: u32, triangle: u32) -> f32 {
+pub fn light_pdf_area(scene: &SceneBuffers, mode: u32, triangle: u32) -> f32 {
     let tri = scene.triangles[triangle as usize];
     selection_pdf(scene.lights, mode, tri.light) / tri.area()
 }

@@ -18,10 +18,6 @@ pub fn sin_cos(x: f32) -> (f32, f32) {
     (x.sin(), x.cos())
 }
 
-pub fn acos(x: f32) -> f32 {
-    x.acos()
-}
-
 /// Largest component index of `|v|` (0, 1 or 2).
 pub fn max_dimension(v: Vec3) -> u32 {
     if v.x >= v.y && v.x >= v.z {
@@ -44,7 +40,8 @@ pub fn component(v: Vec3, i: u32) -> f32 {
     }
 }
 
-/// Mean of the three channels, used for Russian roulette and light power.
+/// Relative luminance of linear Rec. 709 / sRGB primaries (ITU-R BT.709 weights): the
+/// scalar that light power, RIS targets and tone mapping use.
 pub fn luminance(c: Vec3) -> f32 {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }

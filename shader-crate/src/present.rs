@@ -10,9 +10,14 @@ pub struct PresentParams {
     pub width: u32,
     pub height: u32,
     pub exposure: f32,
-    /// 0: clamp (what `render` writes to PNG), 1: Reinhard on luminance.
+    /// `TONEMAP_CLAMP` or `TONEMAP_REINHARD`.
     pub tonemap: u32,
 }
+
+/// Show the exposed radiance as it is, clamped by the display (what `render` writes to PNG).
+pub const TONEMAP_CLAMP: u32 = 0;
+/// Reinhard on luminance: c / (1 + L).
+pub const TONEMAP_REINHARD: u32 = 1;
 
 /// Displayed colour of an accumulation texel (rgb = sum, a = sample count).
 pub fn display_colour(acc: Vec4, params: &PresentParams) -> Vec3 {
@@ -22,7 +27,7 @@ pub fn display_colour(acc: Vec4, params: &PresentParams) -> Vec3 {
         Vec3::ZERO
     };
     let c = mean * params.exposure;
-    let c = if params.tonemap == 1 {
+    let c = if params.tonemap == TONEMAP_REINHARD {
         let l = crate::math::luminance(c);
         c / (1.0 + l)
     } else {
@@ -48,13 +53,13 @@ mod tests {
             width: 1,
             height: 1,
             exposure: 2.0,
-            tonemap: 0,
+            tonemap: TONEMAP_CLAMP,
         };
         let c = display_colour(Vec4::new(0.5, 1.0, 4.0, 4.0), &p);
         assert_eq!(c, Vec3::new(0.25, 0.5, 1.0));
         assert_eq!(display_colour(Vec4::ZERO, &p), Vec3::ZERO);
         let r = PresentParams {
-            tonemap: 1,
+            tonemap: TONEMAP_REINHARD,
             exposure: 1.0,
             ..p
         };

@@ -27,10 +27,6 @@ pub fn cosine_hemisphere(u1: f32, u2: f32) -> Vec3 {
     Vec3::new(r * c, r * s, sqrt((1.0 - u1).max(0.0)))
 }
 
-pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
-    cos_theta.max(0.0) / PI
-}
-
 /// Uniform barycentrics (b1, b2) on a triangle (the square-root warp).
 pub fn uniform_triangle(u1: f32, u2: f32) -> (f32, f32) {
     let su = sqrt(u1);

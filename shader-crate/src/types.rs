@@ -224,16 +224,26 @@ pub struct Bvh2Node {
 }
 
 /// obvhs's compressed 8-wide node (Ylitie et al. 2017), 80 bytes, byte-identical to
-/// `obvhs::cwbvh::node::CwBvhNode` but read as 32-bit words so SPIR-V needs no 8-bit types:
-/// `e_imask` packs the three exponent bytes and `imask`; the byte arrays are pairs of words.
+/// `obvhs::cwbvh::node::CwBvhNode` but read as 32-bit words so SPIR-V needs no 8-bit types.
+/// Each `[u32; 2]` holds one byte per child slot: slots 0–3 in word 0, 4–7 in word 1, slot
+/// k in bits 8·(k mod 4) .. 8·(k mod 4) + 8 (little-endian, as obvhs stores `[u8; 8]`).
+/// Child k's box is `p + scale() · (min, max)` per axis, with the quantised bytes below.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
 pub struct CwBvhNode {
+    /// Origin of the node's quantisation grid (its box's minimum corner).
     pub p: [f32; 3],
+    /// Bits 0–7, 8–15, 16–23: the biased exponents e_x, e_y, e_z of the grid's cell size
+    /// 2^(e − 127); bits 24–31: `imask`, bit k set when slot k holds an interior child.
     pub e_imask: u32,
+    /// Index of the first interior child; they are stored contiguously in slot order.
     pub child_base_idx: u32,
+    /// Index of the first triangle of the leaf children, also contiguous.
     pub primitive_base_idx: u32,
+    /// One meta byte per slot; 0 = empty slot. Interior child: `0b001_11sss` = 24 + slot.
+    /// Leaf child: bits 5–7 = triangle count in unary (`0b001`, `0b011`, `0b111`), bits 0–4 =
+    /// its first triangle's offset from `primitive_base_idx` (0–23). See [`cwbvh_meta`].
     pub child_meta: [u32; 2],
     pub child_min_x: [u32; 2],
     pub child_max_x: [u32; 2],
@@ -241,6 +251,51 @@ pub struct CwBvhNode {
     pub child_max_y: [u32; 2],
     pub child_min_z: [u32; 2],
     pub child_max_z: [u32; 2],
+}
+
+impl CwBvhNode {
+    /// Cell size of the node's grid per axis, 2^(e − 127): the exponent byte moved into an
+    /// f32's exponent field.
+    pub fn scale(&self) -> Vec3 {
+        let e = self.e_imask;
+        Vec3::new(
+            f32::from_bits((e & 0xff) << 23),
+            f32::from_bits(((e >> 8) & 0xff) << 23),
+            f32::from_bits(((e >> 16) & 0xff) << 23),
+        )
+    }
+    /// Bit k set: slot k holds an interior child.
+    pub fn imask(&self) -> u32 {
+        self.e_imask >> 24
+    }
+}
+
+/// Decoding a CWBVH child's meta byte (see [`CwBvhNode::child_meta`]) and the traversal's
+/// hit masks, which use the paper's layout: bits 24–31 = interior children hit (bit
+/// 24 + the child's traversal priority), bits 0–23 = triangles of the leaf children hit
+/// (bit = offset from `primitive_base_idx`).
+pub mod cwbvh_meta {
+    /// Hit-mask bits of interior children.
+    pub const INTERIOR_HITS: u32 = 0xff00_0000;
+    /// Hit-mask bits of leaf triangles.
+    pub const TRIANGLE_HITS: u32 = 0x00ff_ffff;
+    /// First hit-mask bit of interior children.
+    pub const FIRST_INTERIOR_BIT: u32 = 24;
+
+    /// Whether a (non-zero) meta byte is an interior child: bits 3 and 4 both set, which no
+    /// leaf offset (< 24) has.
+    pub fn is_interior(meta: u32) -> bool {
+        meta & 0x18 == 0x18
+    }
+    /// The low five bits: 24 + slot for an interior child, the first triangle's offset for
+    /// a leaf child.
+    pub fn index(meta: u32) -> u32 {
+        meta & 0x1f
+    }
+    /// A leaf child's triangles as consecutive bits (1, 3 or 7), before shifting by `index`.
+    pub fn triangle_bits(meta: u32) -> u32 {
+        meta >> 5
+    }
 }
 
 #[cfg(not(target_arch = "spirv"))]

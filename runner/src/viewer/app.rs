@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use kernels::present::PresentParams;
-use kernels::types::{FrameParams, RESTIR_HISTORY_VALID};
+use kernels::types::FrameParams;
 use winit::application::ApplicationHandler;
 use winit::dpi::PhysicalSize;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
@@ -17,19 +17,22 @@ use winit::window::{Window, WindowId};
 
 use super::controls::{action_for, FlyCamera, Held, Key, ViewState};
 use super::present::{self, Presenter};
+use super::ViewArgs;
 use crate::backend::Backend;
+use crate::backend::BackendChoice;
 use crate::bail;
-use crate::cli::{BackendChoice, Integrator, ViewArgs};
 use crate::error::{Error, Result};
-use crate::gpu::{spirv_words, storage_entry, GpuBackend, GpuContext};
+use crate::gpu::{spirv_words, GpuBackend, GpuContext};
+use crate::integrator::Integrator;
+use crate::options::frame_params;
 use crate::output::{check_writable, write_image, Image};
 use crate::render::pass_params;
+use crate::restir::continue_history;
 use crate::scene::Scene;
-use crate::setup::frame_params;
 
 /// Refuse what `view` cannot do before loading the scene or opening a window.
 pub fn check_args(args: &ViewArgs) -> Result<()> {
-    if args.kernel.backend == BackendChoice::Cpu {
+    if args.device.backend == BackendChoice::Cpu {
         bail!("`view` draws with a Vulkan device (a GPU, or lavapipe); --backend cpu is for `render` and `bench`");
     }
     if !(args.exposure.is_finite() && args.exposure > 0.0) {
@@ -72,7 +75,7 @@ pub fn run(args: &ViewArgs, scene: Scene) -> Result<()> {
     })?;
     let copy = present::use_copy(args.present)?;
     let params = frame_params(&args.scene, &args.kernel, &scene)?;
-    let pose = crate::setup::camera_pose(&args.scene, &scene)?;
+    let pose = crate::camera::camera_pose(&args.scene, &scene)?;
     let camera = FlyCamera::new(pose.eye, pose.target, pose.up, pose.fov, scene.extent());
     let mut app = App {
         args: args.clone(),
@@ -203,7 +206,7 @@ impl App {
         let presenter = pending.finish(&adapter, &ctx.device, &window, w, h)?;
 
         let device = &ctx.device;
-        // SAFETY: as for the compute kernels (see gpu.rs): rust-gpu output validated at build
+        // SAFETY: as for the compute kernels (see gpu/pipelines.rs): rust-gpu output validated at build
         // time, bindings mirrored below.
         let module = unsafe {
             device.create_shader_module_passthrough(wgpu::ShaderModuleDescriptorPassthrough {
@@ -222,11 +225,12 @@ impl App {
                 ..Default::default()
             })
         };
-        let entry = |binding| storage_entry(binding, true, wgpu::ShaderStages::FRAGMENT);
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("present"),
-            entries: &[entry(0), entry(1)],
-        });
+        let layout = crate::gpu::layout(
+            device,
+            "present",
+            &kernels::bindings::PRESENT,
+            wgpu::ShaderStages::FRAGMENT,
+        );
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("present"),
             bind_group_layouts: &[Some(&layout)],
@@ -260,24 +264,13 @@ impl App {
             mapped_at_creation: false,
         });
         let backend = GpuBackend::new(ctx, &self.scene, w, h)?;
-        let present_group =
-            backend
-                .context()
-                .device
-                .create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("present"),
-                    layout: &layout,
-                    entries: &[
-                        wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: present_params.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 1,
-                            resource: backend.accumulation_buffer().as_entire_binding(),
-                        },
-                    ],
-                });
+        let present_group = crate::gpu::bind_group(
+            &backend.context().device,
+            "present",
+            &layout,
+            &kernels::bindings::PRESENT,
+            [&present_params, backend.accumulation_buffer()],
+        );
         eprintln!("viewer: {}, {}", backend.describe(), presenter.describe());
         Ok(Gfx {
             window,
@@ -325,8 +318,7 @@ impl App {
         // ReSTIR's history survives restarts of the accumulation: it follows the camera
         // by reprojection from the previous frame.
         if self.state.restir_history {
-            p.restir_flags |= RESTIR_HISTORY_VALID;
-            p.prev_camera = prev_camera;
+            continue_history(&mut p, prev_camera);
         }
         if self.restart {
             gfx.backend.clear()?;
@@ -346,7 +338,7 @@ impl App {
             width: w,
             height: h,
             exposure: self.args.exposure,
-            tonemap: 0,
+            tonemap: kernels::present::TONEMAP_CLAMP,
         };
         ctx.queue
             .write_buffer(&gfx.present_params, 0, bytemuck::bytes_of(&pp));

@@ -4,7 +4,8 @@ use glam::Vec3;
 use kernels::camera::look_at;
 use kernels::types::{Camera, RESTIR_TEMPORAL, RESTIR_UNBIASED};
 
-use crate::cli::Integrator;
+use crate::integrator::Integrator;
+use crate::options::MAX_SPATIAL_PASSES;
 
 /// Keys the viewer understands (mapped from the windowing library's key codes).
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -37,20 +38,11 @@ pub enum Action {
     Quit,
 }
 
-/// Integrators in number-key order: 1 ao, 2 pt, 3 nee, 4 mis, 5 ris, 6 restir.
-pub const NUMBER_KEYS: [Integrator; 6] = [
-    Integrator::Ao,
-    Integrator::Pt,
-    Integrator::Nee,
-    Integrator::Mis,
-    Integrator::Ris,
-    Integrator::Restir,
-];
-
 pub fn action_for(key: Key) -> Option<Action> {
     match key {
-        Key::Digit(d) if (1..=6).contains(&d) => {
-            Some(Action::SetIntegrator(NUMBER_KEYS[d as usize - 1]))
+        // 1 ao, 2 pt, 3 nee, 4 mis, 5 ris, 6 restir
+        Key::Digit(d) if (1..=Integrator::ALL.len() as u32).contains(&(d as u32)) => {
+            Some(Action::SetIntegrator(Integrator::ALL[d as usize - 1]))
         }
         Key::T => Some(Action::ToggleTemporal),
         Key::B => Some(Action::ToggleUnbiased),
@@ -239,7 +231,8 @@ impl ViewState {
                 true
             }
             Action::SpatialPasses(d) => {
-                self.spatial_passes = (self.spatial_passes as i32 + d).clamp(0, 4) as u32;
+                self.spatial_passes =
+                    (self.spatial_passes as i32 + d).clamp(0, MAX_SPATIAL_PASSES as i32) as u32;
                 true
             }
             Action::ResetCamera => {

@@ -17,8 +17,8 @@ use winit::event::WindowEvent;
 use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::window::{Window, WindowId};
 
+use super::PresentChoice;
 use crate::bail;
-use crate::cli::PresentChoice;
 use crate::error::{Error, Result};
 use crate::gpu::{adapters, adapters_of, instance};
 

@@ -1,6 +1,6 @@
 //! Ambient occlusion, the course's first integrator: the fraction of cosine-weighted
 //! directions around a visible point that escape within `ao_distance`.
-use crate::bvh::{offset_ray_origin, surface_hit, Scene};
+use crate::bvh::{offset_ray_origin, surface_hit, SceneBuffers};
 use crate::glam::Vec3;
 use crate::integrators::{accumulate_samples, PixelResult};
 use crate::intersect::Ray;
@@ -12,7 +12,7 @@ use crate::types::FrameParams;
 /// `distance`. Cosine weighting makes this the cosine-weighted visibility integral
 /// (1/π) ∫ V(ω) cos θ dω estimated with equal weights.
 pub fn ambient_occlusion(
-    scene: &Scene,
+    scene: &SceneBuffers,
     p: Vec3,
     n: Vec3,
     rays: u32,
@@ -36,7 +36,7 @@ pub fn ambient_occlusion(
 /// One AO sample for a camera ray: 0 where the ray leaves the scene (no surface, no
 /// occlusion to speak of), the unoccluded fraction (grey) where it hits.
 pub fn ao_sample(
-    scene: &Scene,
+    scene: &SceneBuffers,
     params: &FrameParams,
     ray: Ray,
     rng: &mut Rng,
@@ -59,7 +59,7 @@ pub fn ao_sample(
     ))
 }
 
-pub fn render_pixel(scene: &Scene, params: &FrameParams, x: u32, y: u32) -> PixelResult {
+pub fn render_pixel(scene: &SceneBuffers, params: &FrameParams, x: u32, y: u32) -> PixelResult {
     accumulate_samples(params, x, y, |ray, rng, rays| {
         ao_sample(scene, params, ray, rng, rays)
     })

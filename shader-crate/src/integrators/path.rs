@@ -8,7 +8,7 @@
 //!   importance sampling (`ris.rs`).
 //!
 //! Surfaces are two-sided Lambertian, lights one-sided, the sky a constant radiance.
-use crate::bvh::{offset_ray_origin, surface_hit, Scene, SurfaceHit};
+use crate::bvh::{offset_ray_origin, surface_hit, SceneBuffers, SurfaceHit};
 use crate::glam::Vec3;
 use crate::integrators::{ris, PixelResult};
 use crate::intersect::Ray;
@@ -22,6 +22,10 @@ pub const BSDF: u32 = 0;
 pub const NEE: u32 = 1;
 pub const MIS: u32 = 2;
 pub const RIS: u32 = 3;
+
+/// Russian roulette never keeps a path with probability above this: even a white surface
+/// ends its paths eventually (and the survivors' weight 1/q stays bounded).
+const MAX_SURVIVAL: f32 = 0.95;
 
 /// Where a path stands: the ray it continues along, the product of BSDF · cos / pdf so
 /// far, the number of the segment `ray` is, and the solid-angle density of the BSDF
@@ -58,7 +62,7 @@ impl PathState {
         self.bsdf_pdf = local.z / PI;
         self.throughput *= albedo;
         if self.depth >= params.rr_depth {
-            let q = self.throughput.max_element().min(0.95);
+            let q = self.throughput.max_element().min(MAX_SURVIVAL);
             if rng.next_f32() >= q {
                 return false;
             }
@@ -73,7 +77,7 @@ impl PathState {
 /// Direct light at surface `s` by next-event estimation: one light point, one shadow ray.
 /// With `mis`, weighted against BSDF sampling by the power heuristic.
 pub fn direct_nee(
-    scene: &Scene,
+    scene: &SceneBuffers,
     params: &FrameParams,
     s: &SurfaceHit,
     albedo: Vec3,
@@ -103,7 +107,7 @@ pub fn direct_nee(
 /// Follow a path from `state` to its end; `rays` counts traced rays (segments and shadow
 /// rays).
 pub fn trace_path(
-    scene: &Scene,
+    scene: &SceneBuffers,
     params: &FrameParams,
     state: PathState,
     rng: &mut Rng,
@@ -158,7 +162,7 @@ pub fn trace_path(
 }
 
 pub fn render_pixel(
-    scene: &Scene,
+    scene: &SceneBuffers,
     params: &FrameParams,
     x: u32,
     y: u32,
@@ -167,4 +171,19 @@ pub fn render_pixel(
     crate::integrators::accumulate_samples(params, x, y, |ray, rng, rays| {
         trace_path(scene, params, PathState::camera(ray), rng, strategy, rays)
     })
+}
+
+/// The per-pixel functions of the path integrators' image kernels (`--integrator pt`,
+/// `nee`, `mis`, `ris`), called by their SPIR-V entry points and by the CPU backend.
+pub fn pt_pixel(scene: &SceneBuffers, params: &FrameParams, x: u32, y: u32) -> PixelResult {
+    render_pixel(scene, params, x, y, BSDF)
+}
+pub fn nee_pixel(scene: &SceneBuffers, params: &FrameParams, x: u32, y: u32) -> PixelResult {
+    render_pixel(scene, params, x, y, NEE)
+}
+pub fn mis_pixel(scene: &SceneBuffers, params: &FrameParams, x: u32, y: u32) -> PixelResult {
+    render_pixel(scene, params, x, y, MIS)
+}
+pub fn ris_pixel(scene: &SceneBuffers, params: &FrameParams, x: u32, y: u32) -> PixelResult {
+    render_pixel(scene, params, x, y, RIS)
 }

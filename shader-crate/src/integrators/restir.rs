@@ -20,7 +20,7 @@
 //! reservoirs that could have: those whose owner has a non-zero target for the sample and
 //! sees it (one shadow ray per such reservoir; Bitterli et al. 2020, Alg. 6 with the
 //! ray-traced test). Both are chosen at run time.
-use crate::bvh::{surface_hit, Scene, SurfaceHit};
+use crate::bvh::{surface_hit, SceneBuffers, SurfaceHit};
 use crate::camera::jittered_ray;
 use crate::glam::Vec3;
 use crate::integrators::path::{trace_path, PathState, NEE};
@@ -76,7 +76,7 @@ fn has_hit(g: &GBufferTexel) -> bool {
 
 /// Pass 1: the camera ray of this pixel (jittered per frame) and what it hits.
 pub fn primary_hit(
-    scene: &Scene,
+    scene: &SceneBuffers,
     params: &FrameParams,
     x: u32,
     y: u32,
@@ -105,7 +105,7 @@ pub fn primary_hit(
 }
 
 /// Whether the surface point (p, n) sees the light point of reservoir `r` (one shadow ray).
-fn sees(scene: &Scene, p: Vec3, n: Vec3, r: &Reservoir, rays: &mut u32) -> bool {
+fn sees(scene: &SceneBuffers, p: Vec3, n: Vec3, r: &Reservoir, rays: &mut u32) -> bool {
     let (q, nq, _) = light_point(scene, r.triangle, r.b1, r.b2);
     *rays += 1;
     scene.visible(p, n, q, nq)
@@ -113,7 +113,7 @@ fn sees(scene: &Scene, p: Vec3, n: Vec3, r: &Reservoir, rays: &mut u32) -> bool 
 
 /// Keep reservoir `r` (owned by the surface point p, n) only if its owner sees the sample;
 /// else it keeps its M but no sample.
-fn keep_if_visible(scene: &Scene, r: &mut Reservoir, p: Vec3, n: Vec3, rays: &mut u32) {
+fn keep_if_visible(scene: &SceneBuffers, r: &mut Reservoir, p: Vec3, n: Vec3, rays: &mut u32) {
     if r.has_sample() && r.w > 0.0 && !sees(scene, p, n, r, rays) {
         let m = r.m;
         *r = Reservoir::empty();
@@ -125,7 +125,7 @@ fn keep_if_visible(scene: &Scene, r: &mut Reservoir, p: Vec3, n: Vec3, rays: &mu
 /// `RESTIR_VISIBILITY_REUSE` is off), so that neither this pixel's later frames nor its
 /// neighbours inherit a light it cannot see.
 pub fn initial_pass(
-    scene: &Scene,
+    scene: &SceneBuffers,
     params: &FrameParams,
     g: &GBufferTexel,
     pixel: u32,
@@ -186,7 +186,7 @@ pub fn project(camera: &Camera, width: u32, height: u32, p: Vec3) -> Option<(u32
 /// reservoir could not have produced the sample. `seen` skips the shadow ray when the
 /// sample is known to be visible there (it came from that reservoir).
 fn target_with_visibility(
-    scene: &Scene,
+    scene: &SceneBuffers,
     params: &FrameParams,
     g: &GBufferTexel,
     r: &Reservoir,
@@ -224,7 +224,7 @@ fn balance_normaliser(weighted_targets: f32, source_target: f32) -> f32 {
 /// so a hidden history sample never displaces this frame's own.
 #[allow(clippy::too_many_arguments)]
 pub fn temporal_pass(
-    scene: &Scene,
+    scene: &SceneBuffers,
     params: &FrameParams,
     g_cur: &[GBufferTexel],
     g_prev: &[GBufferTexel],
@@ -278,7 +278,7 @@ pub fn temporal_pass(
 /// Its result is shown (and read by a further spatial pass), never kept as history.
 #[allow(clippy::too_many_arguments)]
 pub fn spatial_pass(
-    scene: &Scene,
+    scene: &SceneBuffers,
     params: &FrameParams,
     gbuffer: &[GBufferTexel],
     input: &[Reservoir],
@@ -355,9 +355,26 @@ pub fn spatial_pass(
     out
 }
 
-/// Pass 5: the pixel's radiance for this frame.
+/// Pass 5: the pixel's radiance for this frame. A non-finite result is dropped (0), as
+/// every integrator's sample loop drops non-finite samples.
 pub fn shade_pass(
-    scene: &Scene,
+    scene: &SceneBuffers,
+    params: &FrameParams,
+    g: &GBufferTexel,
+    r: &Reservoir,
+    pixel: u32,
+    rays: &mut u32,
+) -> Vec3 {
+    let l = shaded_radiance(scene, params, g, r, pixel, rays);
+    if l.is_finite() {
+        l
+    } else {
+        Vec3::ZERO
+    }
+}
+
+fn shaded_radiance(
+    scene: &SceneBuffers,
     params: &FrameParams,
     g: &GBufferTexel,
     r: &Reservoir,

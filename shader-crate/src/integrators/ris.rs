@@ -2,7 +2,7 @@
 //! light points from the light-source pdf, keep one with weighted reservoir sampling in
 //! proportion to w = p̂ / p, with target p̂ = BRDF · Le · G (visibility taken as 1), and
 //! shade it with one shadow ray: contribution = f · Le · G · V · W, W = w_sum / (M p̂).
-use crate::bvh::{Scene, SurfaceHit};
+use crate::bvh::{SceneBuffers, SurfaceHit};
 use crate::glam::Vec3;
 use crate::lights::{geometry_term, sample_light};
 use crate::math::{luminance, PI};
@@ -11,7 +11,7 @@ use crate::rng::Rng;
 use crate::types::FrameParams;
 
 /// A light point given by triangle and barycentrics: position, front normal, radiance.
-pub fn light_point(scene: &Scene, triangle: u32, b1: f32, b2: f32) -> (Vec3, Vec3, Vec3) {
+pub fn light_point(scene: &SceneBuffers, triangle: u32, b1: f32, b2: f32) -> (Vec3, Vec3, Vec3) {
     let tri = scene.triangles[triangle as usize];
     (
         tri.point(b1, b2),
@@ -31,7 +31,7 @@ pub fn target_pdf(p: Vec3, n: Vec3, albedo: Vec3, q: Vec3, nq: Vec3, le: Vec3) -
 }
 
 /// p̂ of a reservoir's sample at another surface point (reuse re-evaluates it there).
-pub fn target_pdf_of(scene: &Scene, r: &Reservoir, p: Vec3, n: Vec3, albedo: Vec3) -> f32 {
+pub fn target_pdf_of(scene: &SceneBuffers, r: &Reservoir, p: Vec3, n: Vec3, albedo: Vec3) -> f32 {
     if !r.has_sample() {
         return 0.0;
     }
@@ -41,7 +41,7 @@ pub fn target_pdf_of(scene: &Scene, r: &Reservoir, p: Vec3, n: Vec3, albedo: Vec
 
 /// Stream `params.candidates` light samples through a reservoir (not yet finalised).
 pub fn initial_candidates(
-    scene: &Scene,
+    scene: &SceneBuffers,
     params: &FrameParams,
     p: Vec3,
     n: Vec3,
@@ -70,7 +70,7 @@ pub fn initial_candidates(
 }
 
 /// The light point of a finalised reservoir that contributes (a sample and W > 0).
-fn contributing_light(scene: &Scene, r: &Reservoir) -> Option<(Vec3, Vec3, Vec3)> {
+fn contributing_light(scene: &SceneBuffers, r: &Reservoir) -> Option<(Vec3, Vec3, Vec3)> {
     if !r.has_sample() || r.w <= 0.0 {
         return None;
     }
@@ -78,7 +78,13 @@ fn contributing_light(scene: &Scene, r: &Reservoir) -> Option<(Vec3, Vec3, Vec3)
 }
 
 /// A finalised reservoir's contribution without visibility: f · Le · G · W.
-pub fn unshadowed_reservoir(scene: &Scene, r: &Reservoir, p: Vec3, n: Vec3, albedo: Vec3) -> Vec3 {
+pub fn unshadowed_reservoir(
+    scene: &SceneBuffers,
+    r: &Reservoir,
+    p: Vec3,
+    n: Vec3,
+    albedo: Vec3,
+) -> Vec3 {
     match contributing_light(scene, r) {
         Some((q, nq, le)) => unshadowed(p, n, albedo, q, nq, le) * r.w,
         None => Vec3::ZERO,
@@ -87,7 +93,7 @@ pub fn unshadowed_reservoir(scene: &Scene, r: &Reservoir, p: Vec3, n: Vec3, albe
 
 /// Shade a finalised reservoir: f · Le · G · V · W, one shadow ray.
 pub fn shade_reservoir(
-    scene: &Scene,
+    scene: &SceneBuffers,
     r: &Reservoir,
     p: Vec3,
     n: Vec3,
@@ -110,7 +116,7 @@ pub fn shade_reservoir(
 
 /// Direct light at `s` by RIS (the `ris` integrator's first vertex).
 pub fn direct_ris(
-    scene: &Scene,
+    scene: &SceneBuffers,
     params: &FrameParams,
     s: &SurfaceHit,
     albedo: Vec3,

@@ -5,7 +5,7 @@
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    if let Ok(image) = runner::setup::load_and_render_bytes(data) {
+    if let Ok(image) = runner::fuzz::load_and_render_bytes(data) {
         assert!(image.pixels.iter().all(|p| p.is_finite()));
     }
 });

@@ -1,0 +1,119 @@
+//! The kernels' SPIR-V module and their compute pipelines, made on first use.
+use std::borrow::Cow;
+use std::collections::HashMap;
+
+use kernels::bindings;
+
+use super::bindings::layout;
+use crate::integrator::{Integrator, Kernel};
+use crate::restir::RestirPass;
+
+/// The kernels' SPIR-V, compiled from shader-crate by runner/build.rs.
+const SPIRV: &[u8] = include_bytes!(env!("kernels.spv"));
+
+/// Workgroup size of every image kernel (`#[spirv(compute(threads(8, 8)))]`).
+pub const WORKGROUP: (u32, u32) = (8, 8);
+
+/// The kernels' SPIR-V as 32-bit words.
+pub fn spirv_words() -> Vec<u32> {
+    SPIRV
+        .as_chunks::<4>()
+        .0
+        .iter()
+        .map(|w| u32::from_le_bytes(*w))
+        .collect()
+}
+
+/// The compute entry points an integrator runs: its image kernel, or ReSTIR's passes.
+pub fn entry_points(integrator: Integrator) -> Vec<&'static str> {
+    match integrator.kernel() {
+        Kernel::Image { entry_point, .. } => vec![entry_point],
+        Kernel::Restir => RestirPass::ENTRY_POINTS
+            .iter()
+            .map(|p| p.entry_point())
+            .collect(),
+    }
+}
+
+/// The module, the layouts of both descriptor sets, and the pipelines made so far.
+pub struct Pipelines {
+    module: wgpu::ShaderModule,
+    pub scene_layout: wgpu::BindGroupLayout,
+    pub restir_layout: wgpu::BindGroupLayout,
+    image_pipeline_layout: wgpu::PipelineLayout,
+    restir_pipeline_layout: wgpu::PipelineLayout,
+    /// Compute pipelines by entry point, made on first use: the driver compiles each one,
+    /// and a render that runs one integrator should not wait for all ten (on a cold NVIDIA
+    /// shader cache that was seconds).
+    made: HashMap<&'static str, wgpu::ComputePipeline>,
+}
+
+impl Pipelines {
+    pub fn new(device: &wgpu::Device) -> Self {
+        let names = Integrator::ALL.into_iter().flat_map(entry_points);
+        let entry_points: Vec<wgpu::PassthroughShaderEntryPoint> = names
+            .map(|name| wgpu::PassthroughShaderEntryPoint {
+                name: Cow::Borrowed(name),
+                workgroup_size: (WORKGROUP.0, WORKGROUP.1, 1),
+            })
+            .collect();
+        // SAFETY: the module is rust-gpu output validated by spirv-val at build time, and the
+        // layouts below come from the binding tables its entry points declare (checked by
+        // tests/bindings.rs against the module itself).
+        let module = unsafe {
+            device.create_shader_module_passthrough(wgpu::ShaderModuleDescriptorPassthrough {
+                label: Some("kernels"),
+                entry_points: Cow::Owned(entry_points),
+                spirv: Some(Cow::Owned(spirv_words())),
+                ..Default::default()
+            })
+        };
+        let compute = wgpu::ShaderStages::COMPUTE;
+        let scene_layout = layout(device, "scene", &bindings::SCENE, compute);
+        let restir_layout = layout(device, "restir", &bindings::RESTIR, compute);
+        let pipeline_layout = |label, sets: &[Option<&wgpu::BindGroupLayout>]| {
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: sets,
+                immediate_size: 0,
+            })
+        };
+        let image_pipeline_layout = pipeline_layout("image", &[Some(&scene_layout)]);
+        let restir_pipeline_layout =
+            pipeline_layout("restir", &[Some(&scene_layout), Some(&restir_layout)]);
+        Self {
+            module,
+            scene_layout,
+            restir_layout,
+            image_pipeline_layout,
+            restir_pipeline_layout,
+            made: HashMap::new(),
+        }
+    }
+
+    /// Make the pipelines `integrator` runs, if not made yet.
+    pub fn ensure(&mut self, device: &wgpu::Device, integrator: Integrator) {
+        let layout = match integrator.kernel() {
+            Kernel::Image { .. } => &self.image_pipeline_layout,
+            Kernel::Restir => &self.restir_pipeline_layout,
+        };
+        for name in entry_points(integrator) {
+            if self.made.contains_key(name) {
+                continue;
+            }
+            let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(name),
+                layout: Some(layout),
+                module: &self.module,
+                entry_point: Some(name),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+            self.made.insert(name, pipeline);
+        }
+    }
+
+    pub fn get(&self, entry_point: &str) -> &wgpu::ComputePipeline {
+        &self.made[entry_point]
+    }
+}

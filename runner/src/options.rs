@@ -1,0 +1,284 @@
+//! The scene, camera and integrator options that `render`, `bench` and `view` share, and
+//! the one place they are validated and turned into the kernels' `FrameParams`.
+use std::path::PathBuf;
+
+use clap::{Args, ValueEnum};
+use glam::Vec3;
+use kernels::types::FrameParams;
+
+use crate::bail;
+use crate::error::Result;
+use crate::integrator::{Integrator, LightSampling, RestirBias};
+use crate::scene::Scene;
+
+/// Largest image side and size: 16 bytes of accumulation per pixel must fit in memory and
+/// in one GPU buffer.
+pub const MAX_IMAGE_SIDE: u32 = 32_768;
+pub const MAX_IMAGE_PIXELS: u64 = 1 << 27;
+/// Most samples per pixel (and AO rays per sample): keeps sample indices far from overflow.
+pub const MAX_SPP: u32 = 1 << 24;
+/// Most RIS candidates per pixel: 65,536 is already ~100× past where more stop helping,
+/// and every one costs a light sample in every pixel of every frame.
+pub const MAX_CANDIDATES: u32 = 1 << 16;
+/// Most ReSTIR spatial passes per frame: past two or three, more add time and blur, not
+/// quality (Bitterli et al. 2020 use 2).
+pub const MAX_SPATIAL_PASSES: u32 = 8;
+/// Russian roulette starts after this many path segments (pbrt's default depth is 3 too):
+/// the first bounces, which carry most of the light, are never cut short.
+pub const RUSSIAN_ROULETTE_DEPTH: u32 = 3;
+
+/// Scene, camera and image options shared by `render`, `bench` and `view`.
+#[derive(Args, Debug, Clone)]
+pub struct SceneOptions {
+    /// OBJ scene file (MTL files next to it), or a built-in scene: cornell-box,
+    /// many-lights, light-hall, rocks-<N> (N triangles, e.g. rocks-1m) [default: cornell-box]
+    #[arg(long, value_name = "FILE.obj|NAME")]
+    pub scene: Option<PathBuf>,
+    /// Image width in pixels
+    #[arg(long, default_value_t = 512, value_name = "W")]
+    pub width: u32,
+    /// Image height in pixels
+    #[arg(long, default_value_t = 512, value_name = "H")]
+    pub height: u32,
+    /// Camera position [default: the scene's `# camera:` line, else framed from the bounds]
+    #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub eye: Option<Vec3>,
+    /// Point the camera looks at
+    #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub target: Option<Vec3>,
+    /// Up direction (the top of the image) [default: the scene's `# camera:` line, else
+    /// --up-axis]
+    #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub up: Option<Vec3>,
+    /// Which world axis points up in the scene file: y (OBJ and glTF convention) or z
+    /// (Blender, CAD and many scanned meshes); the default camera stands upright on it
+    #[arg(long, value_enum, default_value_t = UpAxis::Y)]
+    pub up_axis: UpAxis,
+    /// Vertical field of view in degrees, in (0, 180)
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    pub fov: Option<f32>,
+}
+
+/// Integrator options shared by `render`, `bench` and `view`.
+#[derive(Args, Debug, Clone)]
+pub struct KernelOptions {
+    /// Which integrator (kernel) to run
+    #[arg(long, value_enum, default_value_t = Integrator::Mis)]
+    pub integrator: Integrator,
+    /// Samples per pixel (camera rays, each jittered in its pixel; the pixel is their mean)
+    #[arg(long, default_value_t = 64, value_name = "N")]
+    pub spp: u32,
+    /// Path segments (Mitsuba's max_depth): 1 = emitters seen directly, 2 = + direct light
+    #[arg(long, default_value_t = 8, value_name = "N")]
+    pub max_depth: u32,
+    /// Radiance of rays that leave the scene
+    #[arg(long, value_parser = parse_vec3, default_value = "0,0,0", value_name = "R,G,B")]
+    pub sky: Vec3,
+    /// How NEE and MIS pick a light triangle
+    #[arg(long, value_enum, default_value_t = LightSampling::Power)]
+    pub light_sampling: LightSampling,
+    /// RIS/ReSTIR: light candidates per pixel
+    #[arg(long, default_value_t = 32, value_name = "M")]
+    pub candidates: u32,
+    /// ReSTIR: cap on the temporal history, in multiples of --candidates
+    #[arg(long, default_value_t = 20.0, value_name = "X")]
+    pub temporal_cap: f32,
+    /// ReSTIR: neighbours merged per spatial pass (at most 16)
+    #[arg(long, default_value_t = 5, value_name = "K")]
+    pub spatial_neighbours: u32,
+    /// ReSTIR: radius of the spatial neighbourhood in pixels [default: 30 px at 1080 lines,
+    /// in proportion to the image's smaller side, at least 3]
+    #[arg(long, value_name = "PX")]
+    pub spatial_radius: Option<f32>,
+    /// ReSTIR: how reused samples are weighted: unbiased (balance heuristic over the
+    /// reservoirs that could have produced the sample, a shadow ray each) or biased (1/M:
+    /// cheaper, ~1% darker on many-lights) [default: biased; unbiased when built with the
+    /// `restir-unbiased` feature]
+    #[arg(long, value_enum)]
+    pub restir_bias: Option<RestirBias>,
+    /// ReSTIR: spatial reuse passes per frame (0 = none, at most 8)
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub spatial_passes: u32,
+    /// ReSTIR: no temporal reuse
+    #[arg(long)]
+    pub no_temporal: bool,
+    /// ReSTIR: do not test each pixel's pick for visibility before reusing it
+    #[arg(long)]
+    pub no_visibility_reuse: bool,
+    /// AO: occlusion rays per camera sample
+    #[arg(long, default_value_t = 4, value_name = "N")]
+    pub ao_rays: u32,
+    /// AO: occlusion ray length [default: 1/4 of the scene's bounding-box diagonal]
+    #[arg(long, value_name = "D")]
+    pub ao_distance: Option<f32>,
+    /// Random seed: the same command and seed give the same image
+    #[arg(long, default_value_t = 0)]
+    pub seed: u32,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum UpAxis {
+    /// +y is up, the model faces +z
+    Y,
+    /// +z is up, the model faces -y
+    Z,
+}
+
+impl UpAxis {
+    /// The world's up vector.
+    pub fn up(self) -> Vec3 {
+        match self {
+            UpAxis::Y => Vec3::Y,
+            UpAxis::Z => Vec3::Z,
+        }
+    }
+    /// The direction a model's front faces: +z for Y-up files (OBJ, glTF), -y for Z-up
+    /// files (Blender's and most CAD tools' front view looks along +y).
+    pub fn front(self) -> Vec3 {
+        match self {
+            UpAxis::Y => Vec3::Z,
+            UpAxis::Z => -Vec3::Y,
+        }
+    }
+}
+
+/// Check the image size against what one accumulation buffer can hold.
+pub fn check_image_size(width: u32, height: u32) -> Result<()> {
+    if width == 0 || height == 0 {
+        bail!("image size must be at least 1x1, got {width}x{height}");
+    }
+    if width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
+        bail!("image size {width}x{height} is too large (at most {MAX_IMAGE_SIDE} per side)");
+    }
+    let pixels = width as u64 * height as u64;
+    if pixels > MAX_IMAGE_PIXELS {
+        bail!("image size {width}x{height} is too large ({pixels} pixels; at most {MAX_IMAGE_PIXELS})");
+    }
+    Ok(())
+}
+
+/// Validate the options and build the kernels' parameters for the first frame.
+pub fn frame_params(
+    args: &SceneOptions,
+    kernel: &KernelOptions,
+    scene: &Scene,
+) -> Result<FrameParams> {
+    if kernel.spp == 0 || kernel.spp > MAX_SPP {
+        bail!("--spp must be between 1 and {MAX_SPP}, got {}", kernel.spp);
+    }
+    if kernel.ao_rays > MAX_SPP {
+        bail!("--ao-rays must be at most {MAX_SPP}");
+    }
+    if kernel.ao_rays == 0 {
+        bail!("--ao-rays must be at least 1");
+    }
+    if kernel.max_depth == 0 {
+        bail!("--max-depth must be at least 1");
+    }
+    if kernel.sky.min_element() < 0.0 || kernel.sky.max_element() > crate::scene::MAX_RADIANCE {
+        bail!(
+            "--sky must be between 0 and {:e} per channel",
+            crate::scene::MAX_RADIANCE
+        );
+    }
+    let needs_lights = kernel.integrator != Integrator::Ao;
+    if needs_lights && scene.lights.is_empty() {
+        if kernel.sky == Vec3::ZERO {
+            bail!(
+                "the scene has no emitters (no material with Ke > 0) and --sky is black: \
+                 the {} image would be black; light it with --sky R,G,B or render --integrator ao",
+                kernel.integrator.name()
+            );
+        }
+        eprintln!("warning: the scene has no emitters; only --sky lights it");
+    }
+    if kernel.candidates == 0 || kernel.candidates > MAX_CANDIDATES {
+        bail!(
+            "--candidates must be between 1 and {MAX_CANDIDATES}, got {}",
+            kernel.candidates
+        );
+    }
+    if !(kernel.temporal_cap > 0.0 && kernel.temporal_cap.is_finite()) {
+        bail!("--temporal-cap must be a positive number");
+    }
+    if kernel.spatial_neighbours > kernels::integrators::restir::MAX_SPATIAL_NEIGHBOURS {
+        bail!(
+            "--spatial-neighbours is at most {}",
+            kernels::integrators::restir::MAX_SPATIAL_NEIGHBOURS
+        );
+    }
+    let spatial_radius = kernel
+        .spatial_radius
+        .unwrap_or_else(|| default_spatial_radius(args.width, args.height));
+    if !(spatial_radius >= 1.0 && spatial_radius.is_finite()) {
+        bail!("--spatial-radius must be at least 1 pixel");
+    }
+    if kernel.spatial_passes > MAX_SPATIAL_PASSES {
+        bail!("--spatial-passes is at most {MAX_SPATIAL_PASSES}");
+    }
+    let ao_distance = kernel.ao_distance.unwrap_or(0.25 * scene.extent());
+    if !(ao_distance > 0.0 && ao_distance.is_finite()) {
+        bail!("--ao-distance must be a positive number, got {ao_distance}");
+    }
+    let camera = crate::camera::camera(args, scene)?;
+    Ok(FrameParams {
+        camera,
+        prev_camera: camera,
+        width: args.width,
+        height: args.height,
+        seed: kernel.seed,
+        ao_rays: kernel.ao_rays,
+        ao_distance,
+        sky: kernel.sky.to_array(),
+        max_depth: kernel.max_depth,
+        light_sampling: kernel.light_sampling.kernel_value(),
+        rr_depth: RUSSIAN_ROULETTE_DEPTH,
+        candidates: kernel.candidates,
+        restir_flags: restir_flags(kernel),
+        temporal_cap: kernel.temporal_cap,
+        spatial_neighbours: kernel.spatial_neighbours,
+        spatial_radius,
+        spatial_passes: kernel.spatial_passes,
+        ..Default::default()
+    })
+}
+
+/// ReSTIR's spatial radius: 30 px at 1080 lines (what RTXDI and Bitterli et al. use at
+/// that size), scaled with the image's smaller side, so that a small image does not reach
+/// across a quarter of itself for neighbours.
+pub fn default_spatial_radius(width: u32, height: u32) -> f32 {
+    const RADIUS_AT_1080: f32 = 30.0;
+    const MIN_RADIUS: f32 = 3.0;
+    (RADIUS_AT_1080 * width.min(height) as f32 / 1080.0).max(MIN_RADIUS)
+}
+
+fn restir_flags(kernel: &KernelOptions) -> u32 {
+    use kernels::types::{RESTIR_TEMPORAL, RESTIR_UNBIASED, RESTIR_VISIBILITY_REUSE};
+    let mut flags = 0;
+    if kernel.restir_bias.unwrap_or(RestirBias::COMPILED_DEFAULT) == RestirBias::Unbiased {
+        flags |= RESTIR_UNBIASED;
+    }
+    if !kernel.no_temporal {
+        flags |= RESTIR_TEMPORAL;
+    }
+    if !kernel.no_visibility_reuse {
+        flags |= RESTIR_VISIBILITY_REUSE;
+    }
+    flags
+}
+
+/// Parse "X,Y,Z" into a vector of finite numbers.
+pub fn parse_vec3(s: &str) -> std::result::Result<Vec3, String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!("expected X,Y,Z, got '{s}'"));
+    }
+    let mut v = [0.0f32; 3];
+    for (x, p) in v.iter_mut().zip(&parts) {
+        *x = p.parse().map_err(|_| format!("'{p}' is not a number"))?;
+        if !x.is_finite() {
+            return Err(format!("'{p}' is not a finite number"));
+        }
+    }
+    Ok(Vec3::from(v))
+}
