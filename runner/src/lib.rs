@@ -19,4 +19,5 @@ pub mod output;
 pub mod render;
 pub mod restir;
 pub mod scene;
+pub mod textures;
 pub mod viewer;

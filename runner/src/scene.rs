@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 use kernels::bvh::BvhNode;
-use kernels::types::{Light, Material, Triangle};
+use kernels::types::{Light, Material, TextureInfo, Triangle, TriangleShading};
 
 use crate::bail;
 use crate::error::{Error, Result};
@@ -36,6 +36,56 @@ pub struct Scene {
     pub lights: Vec<Light>,
     pub camera: Option<CameraHint>,
     pub warnings: Vec<String>,
+    /// Vertex normals, texture coordinates and textures (see `SurfaceAttributes`).
+    pub attributes: SurfaceAttributes,
+}
+
+/// What a surface has beyond its flat triangle and material: per-triangle shading
+/// attributes (indexed by `Triangle::shading`) and the textures materials refer to.
+#[derive(Clone, Debug, Default)]
+pub struct SurfaceAttributes {
+    pub shading: Vec<TriangleShading>,
+    pub textures: Vec<TextureInfo>,
+    /// All textures' texels, RGBA8 (see `kernels::texture`).
+    pub texels: Vec<u32>,
+}
+
+impl SurfaceAttributes {
+    /// Every index the kernels will follow stays inside its buffer.
+    fn check(&self, triangles: &[Triangle], materials: &[Material]) -> Result<()> {
+        let invalid = kernels::types::INVALID;
+        if let Some(t) = triangles
+            .iter()
+            .find(|t| t.shading != invalid && t.shading as usize >= self.shading.len())
+        {
+            bail!(
+                "triangle refers to shading attributes {} of {}",
+                t.shading,
+                self.shading.len()
+            );
+        }
+        if let Some(m) = materials.iter().find(|m| {
+            m.albedo_texture != invalid && m.albedo_texture as usize >= self.textures.len()
+        }) {
+            bail!(
+                "material refers to texture {} of {}",
+                m.albedo_texture,
+                self.textures.len()
+            );
+        }
+        for t in &self.textures {
+            let end = t.offset as u64 + t.width as u64 * t.height as u64;
+            if t.width == 0 || t.height == 0 || end > self.texels.len() as u64 {
+                bail!(
+                    "texture of {}x{} texels at {} is outside the texel buffer",
+                    t.width,
+                    t.height,
+                    t.offset
+                );
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Scene {
@@ -43,6 +93,15 @@ impl Scene {
     /// non-finite) with a warning, build the BVH, put the triangles in its leaf order, and
     /// collect the emitters.
     pub fn new(triangles: Vec<Triangle>, materials: Vec<Material>) -> Result<Self> {
+        Self::with_attributes(triangles, materials, SurfaceAttributes::default())
+    }
+
+    /// `new`, for triangles and materials that refer to shading attributes and textures.
+    pub fn with_attributes(
+        triangles: Vec<Triangle>,
+        materials: Vec<Material>,
+        attributes: SurfaceAttributes,
+    ) -> Result<Self> {
         let total = triangles.len();
         let triangles: Vec<Triangle> = triangles.into_iter().filter(is_proper).collect();
         let mut warnings = Vec::new();
@@ -65,6 +124,7 @@ impl Scene {
                 materials.len()
             );
         }
+        attributes.check(&triangles, &materials)?;
         let bvh = crate::accel::build(&triangles);
         crate::accel::check_depth(&bvh.nodes)?;
         let mut triangles = crate::accel::reorder(&triangles, &bvh.order);
@@ -77,6 +137,7 @@ impl Scene {
             lights,
             camera: None,
             warnings,
+            attributes,
         })
     }
 
@@ -87,6 +148,9 @@ impl Scene {
             materials: &self.materials,
             nodes: &self.nodes,
             lights: &self.lights,
+            shading: &self.attributes.shading,
+            textures: &self.attributes.textures,
+            texels: &self.attributes.texels,
         }
     }
 
@@ -133,9 +197,12 @@ const CORNELL_BOX_MTL: &str = include_str!("../../assets/cornell_box.mtl");
 
 /// The built-in Cornell box (assets/cornell_box.obj).
 pub fn cornell_box() -> Result<Scene> {
-    parse_obj("cornell-box", CORNELL_BOX_OBJ, |_| {
-        load_mtl_text("cornell_box.mtl", CORNELL_BOX_MTL)
-    })
+    parse_obj(
+        "cornell-box",
+        CORNELL_BOX_OBJ,
+        |_| load_mtl_text("cornell_box.mtl", CORNELL_BOX_MTL),
+        |_| Err("the built-in Cornell box has no textures".into()),
+    )
 }
 
 /// Largest radiance a material or the sky may have: 2²⁴ samples of it still sum to a
@@ -252,9 +319,27 @@ pub fn load_obj(path: &Path) -> Result<Scene> {
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let name = path.display().to_string();
     let notes = std::cell::RefCell::new(Vec::new());
-    let mut scene = parse_obj(&name, &text, |mtllib| {
-        load_mtl_files(&name, &dir, mtllib, &mut notes.borrow_mut())
-    })?;
+    let load_texture = |map: &str| {
+        let tried = crate::textures::candidate_paths(&dir, map);
+        match tried.iter().find(|p| p.is_file()) {
+            Some(path) => crate::textures::decode(path)
+                .map_err(|e| format!("cannot read '{}': {e}", path.display())),
+            None => Err(format!(
+                "not found; tried {}",
+                tried
+                    .iter()
+                    .map(|p| format!("'{}'", p.display()))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )),
+        }
+    };
+    let mut scene = parse_obj(
+        &name,
+        &text,
+        |mtllib| load_mtl_files(&name, &dir, mtllib, &mut notes.borrow_mut()),
+        load_texture,
+    )?;
     scene.warnings.extend(notes.into_inner());
     Ok(scene)
 }
@@ -321,17 +406,24 @@ fn load_mtl_files(
 /// Parse OBJ text with, optionally, the text of the MTL file it refers to (whatever name
 /// it gives): the loader without a file system, for fuzzing and tests.
 pub fn parse_obj_text(name: &str, obj: &str, mtl: Option<&str>) -> Result<Scene> {
-    parse_obj(name, obj, |_| match mtl {
-        Some(text) => load_mtl_text("fuzz.mtl", text),
-        None => Ok(Err(tobj::LoadError::OpenFileFailed)),
-    })
+    parse_obj(
+        name,
+        obj,
+        |_| match mtl {
+            Some(text) => load_mtl_text("fuzz.mtl", text),
+            None => Ok(Err(tobj::LoadError::OpenFileFailed)),
+        },
+        |_| Err("no texture files when parsing text".into()),
+    )
 }
 
-/// Parse OBJ text named `name` (for messages); `load_mtl` resolves `mtllib` names.
+/// Parse OBJ text named `name` (for messages); `load_mtl` resolves `mtllib` names and
+/// `load_texture` the file names of `map_Kd` statements.
 fn parse_obj(
     name: &str,
     text: &str,
     load_mtl: impl Fn(&Path) -> Result<tobj::MTLLoadResult>,
+    load_texture: impl Fn(&str) -> std::result::Result<image::RgbaImage, String>,
 ) -> Result<Scene> {
     let camera = parse_camera_hint(name, text)?;
     let text = &normalise(text);
@@ -358,10 +450,37 @@ fn parse_obj(
         return Err(e);
     }
     let mut warnings = Vec::new();
+    let mut attributes = SurfaceAttributes::default();
     let mut materials: Vec<Material> = match mtl_result {
         Ok(mtls) => {
             warnings.extend(unknown_material_warnings(name, text, &mtls));
-            mtls.iter().map(material_from_mtl).collect()
+            // Textures by file name: one decode however many materials share one.
+            let mut loaded: std::collections::HashMap<String, Option<u32>> = Default::default();
+            mtls.iter()
+                .map(|m| {
+                    let mut material = material_from_mtl(m);
+                    let map = m.diffuse_texture.as_deref().map(crate::textures::map_file_name);
+                    if let Some(map) = map.filter(|map| !map.is_empty()) {
+                        let index = *loaded.entry(map.clone()).or_insert_with(|| {
+                            match load_texture(&map) {
+                                Ok(image) => Some(crate::textures::add(&mut attributes, &image)),
+                                Err(why) => {
+                                    warnings.push(format!(
+                                        "texture '{map}' (map_Kd of material '{}') not loaded: {why}; using its Kd",
+                                        m.name
+                                    ));
+                                    None
+                                }
+                            }
+                        });
+                        // The texture is the albedo (exporters often write Kd 0 beside it).
+                        if let Some(index) = index {
+                            material.albedo_texture = index;
+                        }
+                    }
+                    material
+                })
+                .collect()
         }
         Err(e) => {
             if models.iter().any(|m| m.mesh.material_id.is_some()) || text.contains("mtllib") {
@@ -394,17 +513,53 @@ fn parse_obj(
                 ),
             }
         };
-        for face in mesh.indices.as_chunks::<3>().0 {
-            triangles.push(Triangle::new(
+        // Per-corner normal and texture indices, when every face of the mesh has them.
+        let normal_indices = (!mesh.normals.is_empty()
+            && mesh.normal_indices.len() == mesh.indices.len())
+        .then_some(&mesh.normal_indices);
+        let uv_indices = (!mesh.texcoords.is_empty()
+            && mesh.texcoord_indices.len() == mesh.indices.len())
+        .then_some(&mesh.texcoord_indices);
+        for (f, face) in mesh.indices.as_chunks::<3>().0.iter().enumerate() {
+            let mut triangle = Triangle::new(
                 vertex(face[0])?,
                 vertex(face[1])?,
                 vertex(face[2])?,
                 material,
-            ));
+            );
+            let corners = 3 * f..3 * f + 3;
+            let normals: Option<Vec<f32>> = normal_indices.and_then(|ix| {
+                ix[corners.clone()]
+                    .iter()
+                    .map(|&k| mesh.normals.get(3 * k as usize..3 * k as usize + 3))
+                    .collect::<Option<Vec<_>>>()
+                    .map(|v| v.concat())
+            });
+            let uvs: Option<Vec<f32>> = uv_indices.and_then(|ix| {
+                ix[corners]
+                    .iter()
+                    .map(|&k| mesh.texcoords.get(2 * k as usize..2 * k as usize + 2))
+                    .collect::<Option<Vec<_>>>()
+                    .map(|v| v.concat())
+            });
+            if normals.is_some() || uvs.is_some() {
+                let mut shading = TriangleShading::default();
+                if let Some(n) = normals {
+                    shading.normals.copy_from_slice(&n);
+                    shading.flags |= kernels::types::SHADING_NORMALS;
+                }
+                if let Some(uv) = uvs {
+                    shading.uvs.copy_from_slice(&uv);
+                    shading.flags |= kernels::types::SHADING_UVS;
+                }
+                triangle.shading = attributes.shading.len() as u32;
+                attributes.shading.push(shading);
+            }
+            triangles.push(triangle);
         }
     }
-    let mut scene =
-        Scene::new(triangles, materials).map_err(|e| Error(format!("scene '{name}': {e}")))?;
+    let mut scene = Scene::with_attributes(triangles, materials, attributes)
+        .map_err(|e| Error(format!("scene '{name}': {e}")))?;
     warnings.append(&mut scene.warnings);
     scene.warnings = warnings;
     scene.camera = camera;

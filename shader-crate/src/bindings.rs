@@ -33,7 +33,7 @@ const fn restir(binding: u32, name: &'static str, read_only: bool) -> Binding {
 }
 
 /// Set 0, bound by every image kernel and ReSTIR pass.
-pub const SCENE: [Binding; 7] = [
+pub const SCENE: [Binding; 10] = [
     scene(0, "frame params", true),
     scene(1, "triangles", true),
     scene(2, "materials", true),
@@ -42,6 +42,9 @@ pub const SCENE: [Binding; 7] = [
     // rgb = sum of samples, a = their count, per pixel
     scene(5, "accumulation", false),
     scene(6, "rays traced per pixel", false),
+    scene(7, "triangle shading attributes", true),
+    scene(8, "texture table", true),
+    scene(9, "texels", true),
 ];
 
 /// Set 1, bound by the ReSTIR passes besides set 0.

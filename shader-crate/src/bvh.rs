@@ -1,11 +1,16 @@
 //! Scene queries: closest hit and any hit (shadow/AO rays) by brute force, over a binary
 //! BVH, or over a compressed 8-wide BVH (CWBVH). `SceneBuffers` uses the traversal picked by cargo
 //! feature; every variant answers the same question, and the tests hold them to it.
+use crate::glam::Vec2;
 use crate::glam::Vec3;
 use crate::intersect::{intersect_aabb, Hit, Ray, TriangleTester};
 use crate::math::vec3;
+use crate::texture::sample_bilinear;
 use crate::types::cwbvh_meta::{self, FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
-use crate::types::{Bvh2Node, CwBvhNode, Light, Material, Triangle};
+use crate::types::{
+    Bvh2Node, CwBvhNode, Light, Material, TextureInfo, Triangle, TriangleShading, INVALID,
+    SHADING_NORMALS, SHADING_UVS,
+};
 
 /// The node type of the traversal compiled in.
 #[cfg(any(feature = "traversal-bvh2", feature = "traversal-brute-force"))]
@@ -39,6 +44,11 @@ pub struct SceneBuffers<'a> {
     pub materials: &'a [Material],
     pub nodes: &'a [BvhNode],
     pub lights: &'a [Light],
+    /// Vertex normals and texture coordinates, indexed by `Triangle::shading`.
+    pub shading: &'a [TriangleShading],
+    /// The texture table and the texels it points into (see `texture.rs`).
+    pub textures: &'a [TextureInfo],
+    pub texels: &'a [u32],
 }
 
 impl<'a> SceneBuffers<'a> {
@@ -72,6 +82,17 @@ impl<'a> SceneBuffers<'a> {
 
     pub fn material_of(&self, prim: u32) -> Material {
         self.materials[self.triangles[prim as usize].material as usize]
+    }
+
+    /// Diffuse albedo at a surface point: the material's texture at the point's texture
+    /// coordinates, or its constant `Kd`.
+    pub fn albedo(&self, s: &SurfaceHit) -> Vec3 {
+        let material = self.material_of(s.prim);
+        if material.albedo_texture == INVALID {
+            material.albedo()
+        } else {
+            sample_bilinear(self.textures, self.texels, material.albedo_texture, s.uv).truncate()
+        }
     }
 }
 
@@ -363,25 +384,66 @@ pub fn cwbvh_traverse(
 }
 
 /// Shading frame at a hit: position, unit geometric normal turned towards the incoming
-/// ray (surfaces are two-sided), and whether the ray hit the front (emitting) side.
+/// ray (surfaces are two-sided), the shading normal on the same side, texture
+/// coordinates, and whether the ray hit the front (emitting) side.
 #[derive(Copy, Clone, Debug)]
 pub struct SurfaceHit {
     pub p: Vec3,
+    /// Geometric normal: ray offsets and the test that a direction leaves the surface.
     pub n: Vec3,
+    /// Shading normal: the interpolated vertex normal, or `n` without vertex normals. The
+    /// BSDF's cosines and sampling use it.
+    pub ns: Vec3,
+    pub uv: Vec2,
     pub front_face: bool,
     pub prim: u32,
 }
 
-pub fn surface_hit(triangles: &[Triangle], ray: &Ray, hit: &Hit) -> SurfaceHit {
-    let tri = triangles[hit.prim as usize];
+impl SurfaceHit {
+    /// A flat, untextured surface point.
+    pub fn flat(p: Vec3, n: Vec3, front_face: bool, prim: u32) -> Self {
+        Self {
+            p,
+            n,
+            ns: n,
+            uv: Vec2::ZERO,
+            front_face,
+            prim,
+        }
+    }
+
+    /// Whether the direction `dir` leaves the surface on the side the shading frame is
+    /// on. With vertex normals a direction above the shading hemisphere can still point
+    /// into the geometric surface; such directions carry no light (no leaks through it).
+    pub fn leaves(&self, dir: Vec3) -> bool {
+        self.ns == self.n || dir.dot(self.n) > 0.0
+    }
+}
+
+pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
+    let tri = scene.triangles[hit.prim as usize];
     let ng = tri.normal();
     let front_face = ng.dot(ray.dir) < 0.0;
-    SurfaceHit {
-        p: tri.point(hit.b1, hit.b2),
-        n: if front_face { ng } else { -ng },
-        front_face,
-        prim: hit.prim,
+    let n = if front_face { ng } else { -ng };
+    let mut s = SurfaceHit::flat(tri.point(hit.b1, hit.b2), n, front_face, hit.prim);
+    if tri.shading != INVALID {
+        let a = scene.shading[tri.shading as usize];
+        let (b1, b2) = (hit.b1, hit.b2);
+        let b0 = 1.0 - b1 - b2;
+        if a.flags & SHADING_NORMALS != 0 {
+            let m = a.normal(0) * b0 + a.normal(1) * b1 + a.normal(2) * b2;
+            let len = m.length();
+            if len > 0.0 && len.is_finite() {
+                // Turned to the side the ray arrived on, like `n` (two-sided surfaces).
+                let m = m / len;
+                s.ns = if m.dot(n) < 0.0 { -m } else { m };
+            }
+        }
+        if a.flags & SHADING_UVS != 0 {
+            s.uv = a.uv(0) * b0 + a.uv(1) * b1 + a.uv(2) * b2;
+        }
     }
+    s
 }
 
 /// Move a ray origin off the surface along the normal by a few ulps of the position

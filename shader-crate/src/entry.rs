@@ -9,7 +9,9 @@ use crate::glam::{UVec3, Vec4};
 use crate::integrators::{ao, path, restir, PixelResult};
 use crate::present::{display_colour, fullscreen_triangle, PresentParams};
 use crate::reservoir::Reservoir;
-use crate::types::{FrameParams, GBufferTexel, Light, Material, Triangle};
+use crate::types::{
+    FrameParams, GBufferTexel, Light, Material, TextureInfo, Triangle, TriangleShading,
+};
 use spirv_std::spirv;
 
 /// Declares one compute kernel over the image. The scene buffers (set 0) are bound as a
@@ -30,6 +32,9 @@ macro_rules! kernel {
             #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] lights: &[Light],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] $accum: &mut [Vec4],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] ray_counts: &mut [u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] shading: &[TriangleShading],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] textures: &[TextureInfo],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] texels: &[u32],
             $(
             #[spirv(storage_buffer, descriptor_set = 1, binding = 0)] $g_cur: &mut [GBufferTexel],
             #[spirv(storage_buffer, descriptor_set = 1, binding = 1)] $g_prev: &[GBufferTexel],
@@ -41,7 +46,7 @@ macro_rules! kernel {
             if id.x >= $params.width || id.y >= $params.height {
                 return;
             }
-            let $scene = SceneBuffers { triangles, materials, nodes, lights };
+            let $scene = SceneBuffers { triangles, materials, nodes, lights, shading, textures, texels };
             let ($x, $y) = (id.x, id.y);
             let $i = (id.y * $params.width + id.x) as usize;
             let mut $rays = 0u32;

@@ -16,6 +16,7 @@ pub mod present;
 pub mod reservoir;
 pub mod rng;
 pub mod sampling;
+pub mod texture;
 pub mod types;
 
 #[cfg(target_arch = "spirv")]

@@ -10,8 +10,9 @@ use crate::math::vec3;
 /// Marks "no triangle": a miss, or an empty slot.
 pub const INVALID: u32 = u32::MAX;
 
-/// One triangle: three vertices, the index of its material, and its index in the light
-/// table (`INVALID` unless its material emits).
+/// One triangle: three vertices, the index of its material, its index in the light table
+/// (`INVALID` unless its material emits) and of its shading attributes (`INVALID` when it
+/// has no vertex normals or texture coordinates: flat, untextured).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
@@ -21,7 +22,7 @@ pub struct Triangle {
     pub p1: [f32; 3],
     pub light: u32,
     pub p2: [f32; 3],
-    pub _pad: u32,
+    pub shading: u32,
 }
 
 impl Triangle {
@@ -32,7 +33,7 @@ impl Triangle {
             p1: p1.to_array(),
             light: INVALID,
             p2: p2.to_array(),
-            _pad: 0,
+            shading: INVALID,
         }
     }
     pub fn vertices(&self) -> (Vec3, Vec3, Vec3) {
@@ -66,13 +67,14 @@ impl Triangle {
     }
 }
 
-/// Lambertian albedo (`Kd`) and one-sided emitted radiance (`Ke`).
+/// Lambertian albedo (`Kd`, or the texture `map_Kd` when `albedo_texture` is not
+/// `INVALID`) and one-sided emitted radiance (`Ke`).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
 pub struct Material {
     pub albedo: [f32; 3],
-    pub _pad0: f32,
+    pub albedo_texture: u32,
     pub emission: [f32; 3],
     pub _pad1: f32,
 }
@@ -81,7 +83,7 @@ impl Material {
     pub fn new(albedo: Vec3, emission: Vec3) -> Self {
         Self {
             albedo: albedo.to_array(),
-            _pad0: 0.0,
+            albedo_texture: INVALID,
             emission: emission.to_array(),
             _pad1: 0.0,
         }
@@ -95,6 +97,46 @@ impl Material {
     pub fn is_emissive(&self) -> bool {
         self.emission[0] > 0.0 || self.emission[1] > 0.0 || self.emission[2] > 0.0
     }
+}
+
+/// Per-vertex shading attributes of a triangle (OBJ `vn`/`vt`): vertex k's normal is
+/// `normals[3k..3k+3]` and its texture coordinates `uvs[2k..2k+2]`; `flags` says which
+/// of the two the file gave (`SHADING_NORMALS`, `SHADING_UVS`).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
+pub struct TriangleShading {
+    pub normals: [f32; 9],
+    pub uvs: [f32; 6],
+    pub flags: u32,
+}
+
+pub const SHADING_NORMALS: u32 = 1;
+pub const SHADING_UVS: u32 = 2;
+
+impl TriangleShading {
+    pub fn normal(&self, k: usize) -> Vec3 {
+        Vec3::new(
+            self.normals[3 * k],
+            self.normals[3 * k + 1],
+            self.normals[3 * k + 2],
+        )
+    }
+    pub fn uv(&self, k: usize) -> crate::glam::Vec2 {
+        crate::glam::Vec2::new(self.uvs[2 * k], self.uvs[2 * k + 1])
+    }
+}
+
+/// One texture in the texel buffer: `width × height` texels from `offset` on, row by row
+/// from the top, each an RGBA8 word (red in the low byte; colour sRGB-encoded, alpha linear).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
+pub struct TextureInfo {
+    pub offset: u32,
+    pub width: u32,
+    pub height: u32,
+    pub _pad: u32,
 }
 
 /// One emissive triangle in the light table, with its entry of the alias table that picks
@@ -194,6 +236,7 @@ pub const RESTIR_UNBIASED: u32 = 8;
 pub struct GBufferTexel {
     pub p: [f32; 3],
     pub depth: f32,
+    /// Shading normal (the G-buffer keeps no geometric one).
     pub n: [f32; 3],
     pub prim: u32,
     pub albedo: [f32; 3],
@@ -208,6 +251,8 @@ const _: () = {
     assert!(core::mem::size_of::<FrameParams>() == 224);
     assert!(core::mem::size_of::<GBufferTexel>() == 48);
     assert!(core::mem::size_of::<Light>() == 16);
+    assert!(core::mem::size_of::<TriangleShading>() == 64);
+    assert!(core::mem::size_of::<TextureInfo>() == 16);
     assert!(core::mem::size_of::<FrameParams>().is_multiple_of(16));
 };
 

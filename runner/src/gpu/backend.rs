@@ -5,7 +5,9 @@ use std::time::Instant;
 
 use kernels::bindings;
 use kernels::reservoir::Reservoir;
-use kernels::types::{FrameParams, GBufferTexel, Light, Material, Triangle};
+use kernels::types::{
+    FrameParams, GBufferTexel, Light, Material, TextureInfo, Triangle, TriangleShading,
+};
 use wgpu::util::DeviceExt;
 
 use super::bindings::bind_group;
@@ -69,6 +71,16 @@ pub fn check_fits(limits: &wgpu::Limits, scene: &Scene, width: u32, height: u32)
         limits,
         "the light buffer",
         std::mem::size_of_val(&scene.lights[..]) as u64,
+    )?;
+    check_buffer_size(
+        limits,
+        "the shading attribute buffer",
+        std::mem::size_of_val(&scene.attributes.shading[..]) as u64,
+    )?;
+    check_buffer_size(
+        limits,
+        "the texel buffer",
+        std::mem::size_of_val(&scene.attributes.texels[..]) as u64,
     )?;
     check_buffer_size(
         limits,
@@ -147,6 +159,9 @@ impl GpuBackend {
         let materials = upload::<Material>(device, "materials", &scene.materials);
         let nodes = upload::<kernels::bvh::BvhNode>(device, "bvh nodes", &scene.nodes);
         let lights = upload::<Light>(device, "lights", &scene.lights);
+        let shading = upload::<TriangleShading>(device, "shading", &scene.attributes.shading);
+        let textures = upload::<TextureInfo>(device, "textures", &scene.attributes.textures);
+        let texels = upload::<u32>(device, "texels", &scene.attributes.texels);
         let buffer = |label, size, usage| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -176,6 +191,9 @@ impl GpuBackend {
                 &lights,
                 &accum,
                 &ray_counts,
+                &shading,
+                &textures,
+                &texels,
             ],
         );
         let timestamps = Timestamps::new(&ctx);

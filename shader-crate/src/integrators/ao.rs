@@ -47,7 +47,7 @@ pub fn ao_sample(
     if !hit.is_hit() {
         return Vec3::ZERO;
     }
-    let s = surface_hit(scene.triangles, &ray, &hit);
+    let s = surface_hit(scene, &ray, &hit);
     *rays += params.ao_rays;
     Vec3::splat(ambient_occlusion(
         scene,

@@ -59,6 +59,10 @@ impl PathState {
         rng: &mut Rng,
     ) -> bool {
         let local = cosine_hemisphere(rng.next_f32(), rng.next_f32());
+        let dir = local_to_world(local, s.ns);
+        if !s.leaves(dir) {
+            return false;
+        }
         self.bsdf_pdf = local.z / PI;
         self.throughput *= albedo;
         if self.depth >= params.rr_depth {
@@ -68,7 +72,7 @@ impl PathState {
             }
             self.throughput /= q;
         }
-        self.ray = Ray::new(offset_ray_origin(s.p, s.n), local_to_world(local, s.n));
+        self.ray = Ray::new(offset_ray_origin(s.p, s.n), dir);
         self.depth += 1;
         true
     }
@@ -86,8 +90,8 @@ pub fn direct_nee(
     rays: &mut u32,
 ) -> Vec3 {
     let ls = sample_light(scene, params.light_sampling, rng);
-    let g = geometry_term(s.p, s.n, ls.p, ls.n);
-    if g <= 0.0 {
+    let g = geometry_term(s.p, s.ns, ls.p, ls.n);
+    if g <= 0.0 || !s.leaves(ls.p - s.p) {
         return Vec3::ZERO;
     }
     *rays += 1;
@@ -99,7 +103,7 @@ pub fn direct_nee(
         let to_light = ls.p - s.p;
         let dir = to_light.normalize();
         let light_pdf = ls.pdf_area * to_light.length_squared() / -ls.n.dot(dir);
-        weight = power_heuristic(light_pdf, s.n.dot(dir) / PI);
+        weight = power_heuristic(light_pdf, s.ns.dot(dir) / PI);
     }
     (albedo / PI) * ls.emission * (g / ls.pdf_area * weight)
 }
@@ -124,7 +128,7 @@ pub fn trace_path(
             radiance += st.throughput * vec3(params.sky);
             break;
         }
-        let s = surface_hit(scene.triangles, &st.ray, &hit);
+        let s = surface_hit(scene, &st.ray, &hit);
         let material = scene.material_of(hit.prim);
 
         // Emission reached by this segment.
@@ -145,7 +149,7 @@ pub fn trace_path(
         if st.depth == params.max_depth {
             break;
         }
-        let albedo = material.albedo();
+        let albedo = scene.albedo(&s);
         if strategy != BSDF && has_lights {
             let direct = if strategy == RIS && st.depth == 1 {
                 ris::direct_ris(scene, params, &s, albedo, rng, rays)

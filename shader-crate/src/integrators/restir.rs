@@ -93,13 +93,13 @@ pub fn primary_hit(
             ..Default::default()
         };
     }
-    let s = surface_hit(scene.triangles, &ray, &hit);
+    let s = surface_hit(scene, &ray, &hit);
     GBufferTexel {
         p: s.p.to_array(),
         depth: hit.t,
-        n: s.n.to_array(),
+        n: s.ns.to_array(),
         prim: hit.prim,
-        albedo: scene.material_of(hit.prim).albedo().to_array(),
+        albedo: scene.albedo(&s).to_array(),
         front: s.front_face as u32,
     }
 }
@@ -404,12 +404,7 @@ fn shaded_radiance(
     // the indirect light, and at max_depth 2 the sky's direct light (as NEE's bounce does).
     if params.max_depth > 2 || vec3(params.sky) != Vec3::ZERO {
         let mut rng = pass_rng(params, pixel, STREAM_SHADE);
-        let s = SurfaceHit {
-            p,
-            n,
-            front_face: g.front != 0,
-            prim: g.prim,
-        };
+        let s = SurfaceHit::flat(p, n, g.front != 0, g.prim);
         let mut state = PathState::camera(crate::intersect::Ray::new(p, n));
         if state.bounce(&s, albedo, params, &mut rng) {
             radiance += trace_path(scene, params, state, &mut rng, NEE, rays);

@@ -123,7 +123,9 @@ pub fn direct_ris(
     rng: &mut Rng,
     rays: &mut u32,
 ) -> Vec3 {
-    let mut r = initial_candidates(scene, params, s.p, s.n, albedo, rng);
+    // The shading normal throughout: RIS's target and shadow ray see the surface as the
+    // G-buffer of ReSTIR does.
+    let mut r = initial_candidates(scene, params, s.p, s.ns, albedo, rng);
     r.finalize(r.m);
-    shade_reservoir(scene, &r, s.p, s.n, albedo, rays)
+    shade_reservoir(scene, &r, s.p, s.ns, albedo, rays)
 }

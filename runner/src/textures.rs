@@ -1,0 +1,88 @@
+//! Texture files on the host: found next to the scene, decoded with `image` (PNG, JPEG,
+//! TGA, BMP, HDR/EXR), and packed into the one texel buffer the kernels read
+//! (`kernels::texture`).
+use std::path::{Path, PathBuf};
+
+use kernels::types::TextureInfo;
+
+use crate::scene::{read_input_file, SurfaceAttributes};
+
+/// Largest texture file read, and largest decoded texture: what real scenes carry (8k
+/// textures are 256 MiB of RGBA8) with room, and a bound on a hostile header.
+pub const MAX_TEXTURE_FILE_BYTES: u64 = 512 << 20;
+pub const MAX_TEXTURE_TEXELS: u64 = 1 << 26;
+
+/// The file name of an MTL map statement: its last word (`map_Kd -bm 0.5 -s 2 2 a.png`
+/// carries options before it), with Windows separators made portable.
+pub fn map_file_name(statement: &str) -> String {
+    statement
+        .split_whitespace()
+        .last()
+        .unwrap_or("")
+        .replace('\\', "/")
+}
+
+/// The paths a texture named `name` in an MTL beside `dir` may be at: as written, relative
+/// to the scene's folder, then by base name in that folder (as Blender looks them up).
+pub fn candidate_paths(dir: &Path, name: &str) -> Vec<PathBuf> {
+    let mut paths = vec![dir.join(name)];
+    if let Some(base) = Path::new(name).file_name() {
+        let by_base = dir.join(base);
+        if by_base != paths[0] {
+            paths.push(by_base);
+        }
+    }
+    paths
+}
+
+/// Read and decode one texture file to RGBA8 (sRGB colour, as 8-bit textures are stored),
+/// or say why not.
+pub fn decode(path: &Path) -> Result<image::RgbaImage, String> {
+    let bytes = read_input_file(path, MAX_TEXTURE_FILE_BYTES).map_err(|e| e.to_string())?;
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| e.to_string())?;
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(MAX_TEXTURE_TEXELS * 16);
+    reader.limits(limits);
+    let image = reader.decode().map_err(|e| e.to_string())?;
+    if image.width() as u64 * image.height() as u64 > MAX_TEXTURE_TEXELS {
+        return Err(format!(
+            "{}x{} texels, over the limit of {MAX_TEXTURE_TEXELS}",
+            image.width(),
+            image.height()
+        ));
+    }
+    Ok(image.to_rgba8())
+}
+
+/// Append a decoded texture to the texel buffer; its index in the texture table.
+pub fn add(attributes: &mut SurfaceAttributes, image: &image::RgbaImage) -> u32 {
+    let offset = attributes.texels.len() as u32;
+    attributes.texels.extend(
+        image
+            .pixels()
+            .map(|p| u32::from_le_bytes([p[0], p[1], p[2], p[3]])),
+    );
+    attributes.textures.push(TextureInfo {
+        offset,
+        width: image.width(),
+        height: image.height(),
+        _pad: 0,
+    });
+    attributes.textures.len() as u32 - 1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn map_statements_give_their_file() {
+        assert_eq!(map_file_name("wood.png"), "wood.png");
+        assert_eq!(
+            map_file_name("-bm 0.5 -s 2 2 1 tex\\wood.png"),
+            "tex/wood.png"
+        );
+    }
+}

@@ -1,0 +1,118 @@
+//! Texture lookup: all texels of a scene live in one buffer with a table of textures
+//! (`TextureInfo`), and the lookup and filtering are these functions, so the CPU backend
+//! reads a texture exactly as the GPU does.
+#[cfg(target_arch = "spirv")]
+use spirv_std::num_traits::Float;
+
+use crate::glam::{Vec2, Vec4};
+use crate::types::TextureInfo;
+
+/// sRGB transfer function → linear (IEC 61966-2-1).
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Texel (x, y) of a texture, decoded: linear RGB and alpha.
+fn texel(texels: &[u32], info: &TextureInfo, x: u32, y: u32) -> Vec4 {
+    let w = texels[(info.offset + y * info.width + x) as usize];
+    let byte = |shift: u32| ((w >> shift) & 0xff) as f32 / 255.0;
+    Vec4::new(
+        srgb_to_linear(byte(0)),
+        srgb_to_linear(byte(8)),
+        srgb_to_linear(byte(16)),
+        byte(24),
+    )
+}
+
+/// `i` wrapped into 0..n (texture repeat), for any integer `i`.
+fn wrap(i: i32, n: u32) -> u32 {
+    let n = n as i32;
+    let r = i % n;
+    (if r < 0 { r + n } else { r }) as u32
+}
+
+/// Bilinear lookup of texture `index` at `uv`, repeating outside [0, 1]. v = 0 is the
+/// bottom row of the image (the OBJ and OpenGL convention), texel centres at half
+/// integers. Filtering happens on linear values.
+pub fn sample_bilinear(textures: &[TextureInfo], texels: &[u32], index: u32, uv: Vec2) -> Vec4 {
+    let info = textures[index as usize];
+    if info.width == 0 || info.height == 0 {
+        return Vec4::ONE;
+    }
+    let uv = if uv.is_finite() { uv } else { Vec2::ZERO };
+    // Into [0, 1) first, so that huge coordinates keep their fraction in f32.
+    let u = uv.x - uv.x.floor();
+    let v = uv.y - uv.y.floor();
+    let x = u * info.width as f32 - 0.5;
+    let y = (1.0 - v) * info.height as f32 - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let (x0, y0) = (x0 as i32, y0 as i32);
+    let (xa, xb) = (wrap(x0, info.width), wrap(x0 + 1, info.width));
+    let (ya, yb) = (wrap(y0, info.height), wrap(y0 + 1, info.height));
+    let top = texel(texels, &info, xa, ya) * (1.0 - fx) + texel(texels, &info, xb, ya) * fx;
+    let bottom = texel(texels, &info, xa, yb) * (1.0 - fx) + texel(texels, &info, xb, yb) * fx;
+    top * (1.0 - fy) + bottom * fy
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rgba(r: u8, g: u8, b: u8) -> u32 {
+        r as u32 | (g as u32) << 8 | (b as u32) << 16 | 0xff << 24
+    }
+
+    #[test]
+    fn srgb_decoding_matches_the_standard() {
+        assert_eq!(srgb_to_linear(0.0), 0.0);
+        assert!((srgb_to_linear(1.0) - 1.0).abs() < 1e-6);
+        // sRGB 128/255 is 0.2158605 linear.
+        assert!((srgb_to_linear(128.0 / 255.0) - 0.215_860_5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn texel_centres_return_texels_and_between_them_filters_linearly() {
+        // 2x1 texture: left black, right white.
+        let info = [TextureInfo {
+            offset: 0,
+            width: 2,
+            height: 1,
+            _pad: 0,
+        }];
+        let texels = [rgba(0, 0, 0), rgba(255, 255, 255)];
+        let at = |u: f32| sample_bilinear(&info, &texels, 0, Vec2::new(u, 0.5)).x;
+        assert!(at(0.25).abs() < 1e-6, "left texel centre");
+        assert!((at(0.75) - 1.0).abs() < 1e-6, "right texel centre");
+        assert!((at(0.5) - 0.5).abs() < 1e-6, "half way, in linear values");
+        // Repeat: u = 1.25 is u = 0.25, u = -0.25 is u = 0.75.
+        assert!(at(1.25).abs() < 1e-6);
+        assert!((at(-0.25) - 1.0).abs() < 1e-6);
+        // The seam at u = 0 blends the last and the first texel.
+        assert!((at(0.0) - 0.5).abs() < 1e-6);
+        assert_eq!(
+            sample_bilinear(&info, &texels, 0, Vec2::new(f32::NAN, 0.0)).x,
+            at(0.0)
+        );
+    }
+
+    #[test]
+    fn v_zero_is_the_bottom_row() {
+        // 1x2 texture: top row red, bottom row blue.
+        let info = [TextureInfo {
+            offset: 0,
+            width: 1,
+            height: 2,
+            _pad: 0,
+        }];
+        let texels = [rgba(255, 0, 0), rgba(0, 0, 255)];
+        let bottom = sample_bilinear(&info, &texels, 0, Vec2::new(0.5, 0.25));
+        let top = sample_bilinear(&info, &texels, 0, Vec2::new(0.5, 0.75));
+        assert!(bottom.z > 0.99 && bottom.x < 0.01, "{bottom}");
+        assert!(top.x > 0.99 && top.z < 0.01, "{top}");
+    }
+}

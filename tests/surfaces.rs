@@ -1,0 +1,202 @@
+//! Real scene files' surface attributes through the real binary: vertex normals (`vn`)
+//! shade by the interpolated normal, texture coordinates (`vt`) and `map_Kd` give the
+//! albedo, and what cannot be loaded is said, not silently dropped.
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use glam::Vec3;
+
+fn runner(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_runner"))
+        .args(args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("runner binary runs")
+}
+
+fn dir(name: &str) -> PathBuf {
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Render `scene` on the CPU backend looking straight down at the floor quad, return the
+/// image and stderr.
+fn render(scene: &Path, out: &Path, extra: &[&str]) -> (runner::output::Image, String) {
+    let mut args = vec![
+        "render",
+        "--backend",
+        "cpu",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--width",
+        "64",
+        "--height",
+        "64",
+        "--eye",
+        "0,3,0",
+        "--target",
+        "0,0,0",
+        "--up",
+        "0,0,-1",
+        "--fov",
+        "30",
+        "--max-depth",
+        "2",
+    ];
+    args.extend_from_slice(extra);
+    let o = runner(&args);
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{stderr}");
+    (runner::output::read_image(out).unwrap(), stderr)
+}
+
+fn mean(image: &runner::output::Image) -> f64 {
+    image.pixels.iter().map(|p| p.x as f64).sum::<f64>() / image.pixels.len() as f64
+}
+
+/// A 2x2 floor at y = 0 (geometric normal +y) whose four corners all have the normal
+/// `normal`, lit by a small emitter 50 units above it facing down.
+fn tilted_floor(dir: &Path, normal: Vec3) -> PathBuf {
+    let obj = format!(
+        "mtllib s.mtl\n\
+         v -1 0 -1\nv -1 0 1\nv 1 0 1\nv 1 0 -1\n\
+         v -1 50 -1\nv 1 50 -1\nv 1 50 1\nv -1 50 1\n\
+         vn {} {} {}\n\
+         usemtl floor\nf 1//1 2//1 3//1 4//1\n\
+         usemtl light\nf 5 6 7 8\n",
+        normal.x, normal.y, normal.z
+    );
+    let mtl = "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl light\nKd 0 0 0\nKe 625 625 625\n";
+    std::fs::write(dir.join("s.mtl"), mtl).unwrap();
+    let path = dir.join("floor.obj");
+    std::fs::write(&path, obj).unwrap();
+    path
+}
+
+#[test]
+fn vertex_normals_shade_by_the_cosine_of_the_shading_normal() {
+    // The light is straight above (to within 1/50): tilting every shading normal by θ scales
+    // the direct light by cos θ, averaged over the symmetric view. Direct light of one small
+    // light is nearly noise-free, so 2% is many standard errors.
+    let d = dir("surfaces_normals");
+    let theta = 40f32.to_radians();
+    for integrator in ["nee", "mis", "ris", "restir"] {
+        let flat = tilted_floor(&d, Vec3::Y);
+        let (flat, _) = render(
+            &flat,
+            &d.join("flat.exr"),
+            &["--integrator", integrator, "--spp", "16"],
+        );
+        let tilted = tilted_floor(&d, Vec3::new(0.0, theta.cos(), theta.sin()));
+        let (tilted, _) = render(
+            &tilted,
+            &d.join("tilted.exr"),
+            &["--integrator", integrator, "--spp", "16"],
+        );
+        let ratio = mean(&tilted) / mean(&flat);
+        assert!(
+            (ratio - theta.cos() as f64).abs() < 0.02,
+            "{integrator}: tilted/flat = {ratio:.4}, expected cos 40° = {:.4}",
+            theta.cos()
+        );
+        assert!(mean(&flat) > 0.05, "{integrator}: the floor is lit");
+    }
+}
+
+#[test]
+fn vertex_normals_on_the_far_side_are_turned_to_the_ray() {
+    // Normals that point into the surface (inconsistent winding) shade like the side the
+    // camera sees: here exactly the geometric normal, so the image is the flat one.
+    let d = dir("surfaces_flipped");
+    let (flat, _) = render(
+        &tilted_floor(&d, Vec3::Y),
+        &d.join("flat.exr"),
+        &["--integrator", "nee", "--spp", "4"],
+    );
+    let (flipped, _) = render(
+        &tilted_floor(&d, -Vec3::Y),
+        &d.join("flipped.exr"),
+        &["--integrator", "nee", "--spp", "4"],
+    );
+    assert_eq!(flat.pixels, flipped.pixels);
+}
+
+/// A 2x2 floor with texture coordinates u = (x + 1)/2, v = (1 - z)/2, so that seen from
+/// above with -z at the top of the image it shows the texture upright.
+fn textured_floor(dir: &Path, map: &str) -> PathBuf {
+    let obj = "mtllib t.mtl\n\
+               v -1 0 -1\nv -1 0 1\nv 1 0 1\nv 1 0 -1\n\
+               vt 0 1\nvt 0 0\nvt 1 0\nvt 1 1\n\
+               usemtl checker\nf 1/1 2/2 3/3 4/4\n";
+    let mtl = format!("newmtl checker\nKd 0 0 0\nmap_Kd {map}\n");
+    std::fs::write(dir.join("t.mtl"), mtl).unwrap();
+    let path = dir.join("floor.obj");
+    std::fs::write(&path, obj).unwrap();
+    path
+}
+
+#[test]
+fn map_kd_gives_the_albedo_at_the_texture_coordinates() {
+    let d = dir("surfaces_texture");
+    // 2x2 texels, top row red and green, bottom row blue and mid grey (sRGB 128).
+    let texels: [[u8; 4]; 4] = [
+        [255, 0, 0, 255],
+        [0, 255, 0, 255],
+        [0, 0, 255, 255],
+        [128, 128, 128, 255],
+    ];
+    let png = image::RgbaImage::from_raw(2, 2, texels.concat()).unwrap();
+    std::fs::create_dir_all(d.join("tex")).unwrap();
+    png.save(d.join("tex/checker.png")).unwrap();
+    // Options before the name and a Windows path, as exporters write them.
+    let scene = textured_floor(&d, "-bm 1 tex\\checker.png");
+    // Under a white sky and nothing else, one bounce sees the sky in every direction:
+    // the radiance is exactly the albedo, with no noise.
+    let (image, stderr) = render(
+        &scene,
+        &d.join("t.exr"),
+        &["--integrator", "nee", "--sky", "1,1,1", "--spp", "4"],
+    );
+    assert!(!stderr.contains("warning: texture"), "{stderr}");
+    let grey = kernels::texture::srgb_to_linear(128.0 / 255.0);
+    // Pixels over the texel centres (uv 0.25 / 0.75): 0.5 ± 0.5/tan(15°)/3 of the width.
+    let at = |fx: f32, fy: f32| image.pixels[((fy * 64.0) as usize) * 64 + (fx * 64.0) as usize];
+    let (lo, hi) = (0.5 - 0.311, 0.5 + 0.311);
+    for (pixel, expected, what) in [
+        (at(lo, lo), Vec3::new(1.0, 0.0, 0.0), "top left: red"),
+        (at(hi, lo), Vec3::new(0.0, 1.0, 0.0), "top right: green"),
+        (at(lo, hi), Vec3::new(0.0, 0.0, 1.0), "bottom left: blue"),
+        (
+            at(hi, hi),
+            Vec3::splat(grey),
+            "bottom right: sRGB 128 decoded",
+        ),
+    ] {
+        // Bilinear filtering blends in a little of the neighbours within a pixel.
+        assert!(
+            (pixel - expected).abs().max_element() < 0.05,
+            "{what}: {pixel} vs {expected}"
+        );
+    }
+}
+
+#[test]
+fn a_missing_texture_is_a_warning_and_kd_stays() {
+    let d = dir("surfaces_missing_texture");
+    let scene = textured_floor(&d, "nowhere.png");
+    let (image, stderr) = render(
+        &scene,
+        &d.join("t.exr"),
+        &["--integrator", "nee", "--sky", "1,1,1", "--spp", "1"],
+    );
+    assert!(
+        stderr.contains("warning: texture 'nowhere.png' (map_Kd of material 'checker') not loaded")
+            && stderr.contains("tried"),
+        "{stderr}"
+    );
+    // Kd 0: black, as the file says when its texture is gone.
+    assert_eq!(mean(&image), 0.0);
+}
