@@ -454,6 +454,19 @@ fn parse_obj(
     let mut materials: Vec<Material> = match mtl_result {
         Ok(mtls) => {
             warnings.extend(unknown_material_warnings(name, text, &mtls));
+            // What no material kind here reads: one warning per key, with a count.
+            let mut ignored: Vec<(&str, usize)> = Vec::new();
+            for key in mtls.iter().flat_map(ignored_mtl_keys) {
+                match ignored.iter_mut().find(|(k, _)| *k == key) {
+                    Some((_, n)) => *n += 1,
+                    None => ignored.push((key, 1)),
+                }
+            }
+            for (key, n) in ignored {
+                warnings.push(format!(
+                    "materials of '{name}': {key} in {n} material(s) is not supported yet; ignored"
+                ));
+            }
             // Textures by file name: one decode however many materials share one.
             let mut loaded: std::collections::HashMap<String, Option<u32>> = Default::default();
             mtls.iter()
@@ -588,13 +601,93 @@ fn unknown_material_warnings(name: &str, text: &str, known: &[tobj::Material]) -
     warnings
 }
 
+/// GGX α of a Phong exponent `Ns` (Walter et al. 2007's Beckmann–Phong correspondence,
+/// α = √(2 / (Ns + 2))): Ns 10 is α 0.41, Ns 100 α 0.14, Ns 1000 α 0.045.
+pub fn alpha_from_phong(ns: f32) -> f32 {
+    (2.0 / (ns.max(0.0) + 2.0)).sqrt()
+}
+
+/// MTL statements the loader reads no meaning from (each one named once per scene when a
+/// material uses it).
+fn ignored_mtl_keys(m: &tobj::Material) -> Vec<&'static str> {
+    let mut keys = Vec::new();
+    for (key, present) in [
+        ("map_Ks", m.specular_texture.is_some()),
+        ("map_Ns", m.shininess_texture.is_some()),
+        ("map_Bump/norm", m.normal_texture.is_some()),
+        ("map_d", m.dissolve_texture.is_some()),
+        ("map_Ka", m.ambient_texture.is_some()),
+    ] {
+        if present {
+            keys.push(key);
+        }
+    }
+    let glass = matches!(m.illumination_model, Some(4 | 6 | 7 | 9));
+    if m.dissolve.is_some_and(|d| d < 1.0) && !glass {
+        keys.push("d < 1 (transparency without a glass illum)");
+    }
+    keys
+}
+
+/// An MTL material on our BSDF family (documented in the README):
+/// - `illum 4, 6, 7, 9` (glass): dielectric of index `Ni` (default 1.5), smooth, or rough
+///   with α = `Pr`² when the PBR extension's `Pr` is given;
+/// - `illum 3, 5` (mirror reflection): a smooth conductor of reflectance `Ks` when `Kd` is
+///   black, else `Kd` under a smooth clear coat;
+/// - PBR extension `Pm`/`Pr`: metallic ≥ 0.5 is a conductor of reflectance `Kd`, else `Kd`
+///   under a coat; α = `Pr`²;
+/// - otherwise `Ks` > 0 is glossy: a conductor of reflectance `Ks` when `Kd` is black, else
+///   `Kd` under a coat, α from `Ns` (`alpha_from_phong`); else Lambertian `Kd`.
+///   `Ke` is the emitted radiance of any of them.
 fn material_from_mtl(m: &tobj::Material) -> Material {
     let kd = m
         .diffuse
         .map(Vec3::from)
-        .unwrap_or(Vec3::splat(DEFAULT_ALBEDO));
-    let ke = m.emissive.map(Vec3::from).unwrap_or(Vec3::ZERO);
-    Material::new(kd.clamp(Vec3::ZERO, Vec3::ONE), ke.max(Vec3::ZERO))
+        .unwrap_or(Vec3::splat(DEFAULT_ALBEDO))
+        .clamp(Vec3::ZERO, Vec3::ONE);
+    let ks = m
+        .specular
+        .map(Vec3::from)
+        .unwrap_or(Vec3::ZERO)
+        .clamp(Vec3::ZERO, Vec3::ONE);
+    let ke = m
+        .emissive
+        .map(Vec3::from)
+        .unwrap_or(Vec3::ZERO)
+        .max(Vec3::ZERO);
+    let ior = m
+        .optical_density
+        .filter(|n| n.is_finite() && *n >= 1.0 && *n <= 4.0)
+        .unwrap_or(kernels::types::DEFAULT_IOR);
+    let param = |key: &str| {
+        m.unknown_param
+            .get(key)
+            .and_then(|v| v.trim().parse::<f32>().ok())
+            .filter(|v| v.is_finite())
+            .map(|v| v.clamp(0.0, 1.0))
+    };
+    let black = kd.max_element() <= 0.0;
+    let alpha = m.shininess.map_or(1.0, alpha_from_phong);
+    let mut material = match (m.illumination_model, param("Pm"), param("Pr")) {
+        (Some(4 | 6 | 7 | 9), _, roughness) => {
+            Material::dielectric(ior, roughness.map_or(0.0, |r| r * r))
+        }
+        (Some(3 | 5), _, _) if black => Material::conductor(ks, 0.0),
+        (Some(3 | 5), _, _) => Material::coated(kd, ior, 0.0),
+        (_, metallic, roughness) if metallic.is_some() || roughness.is_some() => {
+            let a = roughness.map_or(0.25, |r| r * r);
+            if metallic.unwrap_or(0.0) >= 0.5 {
+                Material::conductor(kd, a)
+            } else {
+                Material::coated(kd, ior, a)
+            }
+        }
+        _ if ks.max_element() > 0.0 && black => Material::conductor(ks, alpha),
+        _ if ks.max_element() > 0.0 => Material::coated(kd, ior, alpha),
+        _ => Material::new(kd, Vec3::ZERO),
+    };
+    material.emission = ke.to_array();
+    material
 }
 
 /// Check vertex and face lines before tobj sees them, so every error names its line:

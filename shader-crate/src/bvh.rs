@@ -1,10 +1,12 @@
 //! Scene queries: closest hit and any hit (shadow/AO rays) by brute force, over a binary
 //! BVH, or over a compressed 8-wide BVH (CWBVH). `SceneBuffers` uses the traversal picked by cargo
 //! feature; every variant answers the same question, and the tests hold them to it.
+use crate::bsdf::{Bsdf, BSDF_DIELECTRIC};
 use crate::glam::Vec2;
 use crate::glam::Vec3;
 use crate::intersect::{intersect_aabb, Hit, Ray, TriangleTester};
 use crate::math::vec3;
+use crate::sampling::orthonormal_basis;
 use crate::texture::sample_bilinear;
 use crate::types::cwbvh_meta::{self, FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
 use crate::types::{
@@ -73,6 +75,8 @@ impl<'a> SceneBuffers<'a> {
     /// Whether the light point (q, nq) is visible from the surface point (p, n): one
     /// shadow ray between the offset end points.
     pub fn visible(&self, p: Vec3, n: Vec3, q: Vec3, nq: Vec3) -> bool {
+        // Off the surface on the side the light is on (it can be below: transmission).
+        let n = if (q - p).dot(n) >= 0.0 { n } else { -n };
         let origin = offset_ray_origin(p, n);
         let target = offset_ray_origin(q, nq);
         let d = target - origin;
@@ -82,6 +86,28 @@ impl<'a> SceneBuffers<'a> {
 
     pub fn material_of(&self, prim: u32) -> Material {
         self.materials[self.triangles[prim as usize].material as usize]
+    }
+
+    /// The BSDF at a surface point. A dielectric's relative index depends on the side the
+    /// ray arrived on: the material's index entering through the front, its inverse leaving.
+    pub fn bsdf(&self, s: &SurfaceHit) -> Bsdf {
+        self.bsdf_with_albedo(s.prim, s.front_face, self.albedo(s))
+    }
+
+    /// `bsdf` for a point whose albedo is known (a G-buffer keeps it).
+    pub fn bsdf_with_albedo(&self, prim: u32, front_face: bool, albedo: Vec3) -> Bsdf {
+        let m = self.material_of(prim);
+        Bsdf {
+            kind: m.kind,
+            albedo,
+            specular: vec3(m.specular),
+            alpha: m.alpha,
+            eta: if m.kind == BSDF_DIELECTRIC && !front_face {
+                1.0 / m.ior
+            } else {
+                m.ior
+            },
+        }
     }
 
     /// Diffuse albedo at a surface point: the material's texture at the point's texture
@@ -412,11 +438,30 @@ impl SurfaceHit {
         }
     }
 
-    /// Whether the direction `dir` leaves the surface on the side the shading frame is
-    /// on. With vertex normals a direction above the shading hemisphere can still point
-    /// into the geometric surface; such directions carry no light (no leaks through it).
+    /// Whether the direction `dir` is on the same side of the geometric surface as of the
+    /// shading one. With vertex normals a direction above the shading hemisphere can still
+    /// point into the geometric surface (or one refracted below it point out); such
+    /// directions carry no light, so smooth normals never leak light through a face.
     pub fn leaves(&self, dir: Vec3) -> bool {
-        self.ns == self.n || dir.dot(self.n) > 0.0
+        self.ns == self.n || (dir.dot(self.n) > 0.0) == (dir.dot(self.ns) > 0.0)
+    }
+
+    /// The shading frame's tangents (t, b) with `ns`: world ↔ local for the BSDF.
+    pub fn to_local(&self, w: Vec3) -> Vec3 {
+        let (t, b) = orthonormal_basis(self.ns);
+        Vec3::new(w.dot(t), w.dot(b), w.dot(self.ns))
+    }
+
+    /// The ray origin for leaving the surface towards `dir`: offset to that side.
+    pub fn origin_towards(&self, dir: Vec3) -> Vec3 {
+        offset_ray_origin(
+            self.p,
+            if dir.dot(self.n) >= 0.0 {
+                self.n
+            } else {
+                -self.n
+            },
+        )
     }
 }
 

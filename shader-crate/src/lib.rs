@@ -6,6 +6,7 @@
 #![deny(warnings)]
 
 pub mod bindings;
+pub mod bsdf;
 pub mod bvh;
 pub mod camera;
 pub mod integrators;

@@ -67,8 +67,11 @@ impl Triangle {
     }
 }
 
-/// Lambertian albedo (`Kd`, or the texture `map_Kd` when `albedo_texture` is not
-/// `INVALID`) and one-sided emitted radiance (`Ke`).
+/// A surface's BSDF (`kind`: one of `bsdf::BSDF_*`) and its one-sided emitted radiance
+/// (`Ke`). `albedo` is the diffuse colour (`Kd`, or the texture `map_Kd` when
+/// `albedo_texture` is not `INVALID`), `specular` a conductor's reflectance at normal
+/// incidence, `alpha` the GGX roughness α and `ior` the index of refraction of a
+/// dielectric or of a coat.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
@@ -76,16 +79,55 @@ pub struct Material {
     pub albedo: [f32; 3],
     pub albedo_texture: u32,
     pub emission: [f32; 3],
-    pub _pad1: f32,
+    pub kind: u32,
+    pub specular: [f32; 3],
+    pub alpha: f32,
+    pub ior: f32,
+    pub _pad: [u32; 3],
 }
 
+/// Index of refraction of glass, and of coats, when a file gives none.
+pub const DEFAULT_IOR: f32 = 1.5;
+
 impl Material {
+    /// Lambertian diffuse `albedo`, emitting `emission` from its front side.
     pub fn new(albedo: Vec3, emission: Vec3) -> Self {
         Self {
             albedo: albedo.to_array(),
             albedo_texture: INVALID,
             emission: emission.to_array(),
-            _pad1: 0.0,
+            kind: crate::bsdf::BSDF_DIFFUSE,
+            specular: [0.0; 3],
+            alpha: 1.0,
+            ior: DEFAULT_IOR,
+            _pad: [0; 3],
+        }
+    }
+    /// A metal: reflectance `specular` at normal incidence, GGX roughness `alpha` (0: mirror).
+    pub fn conductor(specular: Vec3, alpha: f32) -> Self {
+        Self {
+            kind: crate::bsdf::BSDF_CONDUCTOR,
+            specular: specular.to_array(),
+            alpha,
+            ..Self::new(Vec3::ZERO, Vec3::ZERO)
+        }
+    }
+    /// Glass, water: a dielectric interface of index `ior`, GGX roughness `alpha`.
+    pub fn dielectric(ior: f32, alpha: f32) -> Self {
+        Self {
+            kind: crate::bsdf::BSDF_DIELECTRIC,
+            ior,
+            alpha,
+            ..Self::new(Vec3::ZERO, Vec3::ZERO)
+        }
+    }
+    /// Plastic, varnish: diffuse `albedo` under a clear coat of index `ior`, roughness `alpha`.
+    pub fn coated(albedo: Vec3, ior: f32, alpha: f32) -> Self {
+        Self {
+            kind: crate::bsdf::BSDF_COATED,
+            ior,
+            alpha,
+            ..Self::new(albedo, Vec3::ZERO)
         }
     }
     pub fn albedo(&self) -> Vec3 {
@@ -246,7 +288,7 @@ pub struct GBufferTexel {
 #[cfg(not(target_arch = "spirv"))]
 const _: () = {
     assert!(core::mem::size_of::<Triangle>() == 48);
-    assert!(core::mem::size_of::<Material>() == 32);
+    assert!(core::mem::size_of::<Material>() == 64);
     assert!(core::mem::size_of::<Camera>() == 64);
     assert!(core::mem::size_of::<FrameParams>() == 224);
     assert!(core::mem::size_of::<GBufferTexel>() == 48);

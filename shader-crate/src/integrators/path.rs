@@ -7,15 +7,18 @@
 //! - `RIS`: like NEE, but the direct light at the first vertex comes from resampled
 //!   importance sampling (`ris.rs`).
 //!
-//! Surfaces are two-sided Lambertian, lights one-sided, the sky a constant radiance.
-use crate::bvh::{offset_ray_origin, surface_hit, SceneBuffers, SurfaceHit};
+//! Surfaces are two-sided with the BSDFs of `bsdf.rs`, lights one-sided, the sky a
+//! constant radiance.
+use crate::bsdf::Bsdf;
+use crate::bvh::{surface_hit, SceneBuffers, SurfaceHit};
 use crate::glam::Vec3;
-use crate::integrators::{ris, PixelResult};
+use crate::integrators::ris::{self, ShadingPoint};
+use crate::integrators::PixelResult;
 use crate::intersect::Ray;
-use crate::lights::{geometry_term, light_pdf_area, power_heuristic, sample_light};
-use crate::math::{vec3, PI};
+use crate::lights::{light_pdf_area, power_heuristic, sample_light};
+use crate::math::vec3;
 use crate::rng::Rng;
-use crate::sampling::{cosine_hemisphere, local_to_world};
+use crate::sampling::local_to_world;
 use crate::types::FrameParams;
 
 pub const BSDF: u32 = 0;
@@ -28,14 +31,17 @@ pub const RIS: u32 = 3;
 const MAX_SURVIVAL: f32 = 0.95;
 
 /// Where a path stands: the ray it continues along, the product of BSDF · cos / pdf so
-/// far, the number of the segment `ray` is, and the solid-angle density of the BSDF
-/// sample that produced `ray` (MIS weights the emission it reaches).
+/// far, the number of the segment `ray` is, the solid-angle density of the BSDF sample
+/// that produced `ray` (MIS weights the emission it reaches), and whether that sample came
+/// from a delta lobe (a mirror or smooth glass: no light sample could have found what it
+/// reaches, so emission counts in full).
 #[derive(Copy, Clone, Debug)]
 pub struct PathState {
     pub ray: Ray,
     pub throughput: Vec3,
     pub depth: u32,
     pub bsdf_pdf: f32,
+    pub delta: bool,
 }
 
 impl PathState {
@@ -45,26 +51,35 @@ impl PathState {
             throughput: Vec3::ONE,
             depth: 1,
             bsdf_pdf: 0.0,
+            delta: false,
         }
     }
 
-    /// Continue from surface `s` (albedo `albedo`) by cosine sampling: the sampling cancels
-    /// cos/π against the Lambertian BRDF, leaving throughput *= albedo (the course's
-    /// update). Returns false when Russian roulette ends the path.
+    /// Continue from surface `s` by sampling its BSDF: throughput *= f · cos / pdf (for a
+    /// Lambertian surface, cosine sampling leaves the albedo: the course's update). Draws
+    /// two numbers, a third only for BSDFs that choose between lobes. Returns false when
+    /// the sample fails or Russian roulette ends the path.
     pub fn bounce(
         &mut self,
         s: &SurfaceHit,
-        albedo: Vec3,
+        bsdf: &Bsdf,
         params: &FrameParams,
         rng: &mut Rng,
     ) -> bool {
-        let local = cosine_hemisphere(rng.next_f32(), rng.next_f32());
-        let dir = local_to_world(local, s.ns);
-        if !s.leaves(dir) {
+        let (u1, u2) = (rng.next_f32(), rng.next_f32());
+        let u3 = if bsdf.chooses_lobes() {
+            rng.next_f32()
+        } else {
+            0.0
+        };
+        let sample = bsdf.sample(s.to_local(-self.ray.dir), u1, u2, u3);
+        let dir = local_to_world(sample.wi, s.ns);
+        if !sample.is_valid() || !s.leaves(dir) {
             return false;
         }
-        self.bsdf_pdf = local.z / PI;
-        self.throughput *= albedo;
+        self.bsdf_pdf = sample.pdf;
+        self.delta = sample.delta;
+        self.throughput *= sample.weight;
         if self.depth >= params.rr_depth {
             let q = self.throughput.max_element().min(MAX_SURVIVAL);
             if rng.next_f32() >= q {
@@ -72,26 +87,37 @@ impl PathState {
             }
             self.throughput /= q;
         }
-        self.ray = Ray::new(offset_ray_origin(s.p, s.n), dir);
+        self.ray = Ray::new(s.origin_towards(dir), dir);
         self.depth += 1;
         true
     }
 }
 
-/// Direct light at surface `s` by next-event estimation: one light point, one shadow ray.
-/// With `mis`, weighted against BSDF sampling by the power heuristic.
+/// Direct light at surface `s` (viewed from `wo`) by next-event estimation: one light
+/// point, one shadow ray. With `mis`, weighted against BSDF sampling by the power
+/// heuristic.
+#[allow(clippy::too_many_arguments)] // the estimator's inputs, each used once
 pub fn direct_nee(
     scene: &SceneBuffers,
     params: &FrameParams,
     s: &SurfaceHit,
-    albedo: Vec3,
+    bsdf: &Bsdf,
+    wo: Vec3,
     mis: bool,
     rng: &mut Rng,
     rays: &mut u32,
 ) -> Vec3 {
     let ls = sample_light(scene, params.light_sampling, rng);
-    let g = geometry_term(s.p, s.ns, ls.p, ls.n);
-    if g <= 0.0 || !s.leaves(ls.p - s.p) {
+    let to_light = ls.p - s.p;
+    let dist2 = to_light.length_squared();
+    let dir = to_light / crate::math::sqrt(dist2);
+    let cos_light = -ls.n.dot(dir);
+    if cos_light <= 0.0 || dist2 == 0.0 || !s.leaves(dir) {
+        return Vec3::ZERO;
+    }
+    let (wo, wi) = (s.to_local(wo), s.to_local(dir));
+    let f = bsdf.eval(wo, wi);
+    if f == Vec3::ZERO {
         return Vec3::ZERO;
     }
     *rays += 1;
@@ -100,12 +126,10 @@ pub fn direct_nee(
     }
     let mut weight = 1.0;
     if mis {
-        let to_light = ls.p - s.p;
-        let dir = to_light.normalize();
-        let light_pdf = ls.pdf_area * to_light.length_squared() / -ls.n.dot(dir);
-        weight = power_heuristic(light_pdf, s.ns.dot(dir) / PI);
+        let light_pdf = ls.pdf_area * dist2 / cos_light;
+        weight = power_heuristic(light_pdf, bsdf.pdf(wo, wi));
     }
-    (albedo / PI) * ls.emission * (g / ls.pdf_area * weight)
+    f * ls.emission * (cos_light / dist2 / ls.pdf_area * weight)
 }
 
 /// Follow a path from `state` to its end; `rays` counts traced rays (segments and shadow
@@ -133,7 +157,7 @@ pub fn trace_path(
 
         // Emission reached by this segment.
         if s.front_face && material.is_emissive() {
-            let weight = if st.depth == 1 || strategy == BSDF {
+            let weight = if st.depth == 1 || strategy == BSDF || st.delta {
                 1.0
             } else if strategy == MIS {
                 let cos_light = -s.n.dot(st.ray.dir);
@@ -149,16 +173,18 @@ pub fn trace_path(
         if st.depth == params.max_depth {
             break;
         }
-        let albedo = scene.albedo(&s);
-        if strategy != BSDF && has_lights {
+        let bsdf = scene.bsdf(&s);
+        let wo = -st.ray.dir;
+        // A delta BSDF has nothing for a light sample to find: its bounce finds the light.
+        if strategy != BSDF && has_lights && !bsdf.is_delta() {
             let direct = if strategy == RIS && st.depth == 1 {
-                ris::direct_ris(scene, params, &s, albedo, rng, rays)
+                ris::direct_ris(scene, params, &ShadingPoint::new(&s, wo, bsdf), rng, rays)
             } else {
-                direct_nee(scene, params, &s, albedo, strategy == MIS, rng, rays)
+                direct_nee(scene, params, &s, &bsdf, wo, strategy == MIS, rng, rays)
             };
             radiance += st.throughput * direct;
         }
-        if !st.bounce(&s, albedo, params, rng) {
+        if !st.bounce(&s, &bsdf, params, rng) {
             break;
         }
     }

@@ -20,12 +20,14 @@
 //! reservoirs that could have: those whose owner has a non-zero target for the sample and
 //! sees it (one shadow ray per such reservoir; Bitterli et al. 2020, Alg. 6 with the
 //! ray-traced test). Both are chosen at run time.
+use crate::bsdf::BSDF_DIFFUSE;
 use crate::bvh::{surface_hit, SceneBuffers, SurfaceHit};
 use crate::camera::jittered_ray;
 use crate::glam::Vec3;
 use crate::integrators::path::{trace_path, PathState, NEE};
 use crate::integrators::ris::{
     initial_candidates, light_point, shade_reservoir, target_pdf_of, unshadowed_reservoir,
+    ShadingPoint,
 };
 use crate::math::{sin_cos, sqrt, vec3, PI};
 use crate::reservoir::Reservoir;
@@ -134,14 +136,26 @@ pub fn initial_pass(
     if !has_hit(g) {
         return Reservoir::empty();
     }
-    let (p, n, albedo) = (vec3(g.p), vec3(g.n), vec3(g.albedo));
+    let sp = shading_point(scene, g, vec3(params.camera.eye));
     let mut rng = pass_rng(params, pixel, STREAM_INITIAL);
-    let mut r = initial_candidates(scene, params, p, n, albedo, &mut rng);
+    let mut r = initial_candidates(scene, params, &sp, &mut rng);
     r.finalize(r.m);
     if visibility_reuse(params) {
-        keep_if_visible(scene, &mut r, p, n, rays);
+        keep_if_visible(scene, &mut r, sp.p, sp.n, rays);
     }
     r
+}
+
+/// The surface of a G-buffer texel as the estimators see it, viewed from `eye` (the
+/// camera that made that G-buffer).
+fn shading_point(scene: &SceneBuffers, g: &GBufferTexel, eye: Vec3) -> ShadingPoint {
+    let p = vec3(g.p);
+    ShadingPoint {
+        p,
+        n: vec3(g.n),
+        wo: (eye - p).normalize(),
+        bsdf: scene.bsdf_with_albedo(g.prim, g.front != 0, vec3(g.albedo)),
+    }
 }
 
 fn visibility_reuse(params: &FrameParams) -> bool {
@@ -185,10 +199,12 @@ pub fn project(camera: &Camera, width: u32, height: u32, p: Vec3) -> Option<(u32
 /// every reservoir keeps only samples its owner sees, so this is zero exactly where that
 /// reservoir could not have produced the sample. `seen` skips the shadow ray when the
 /// sample is known to be visible there (it came from that reservoir).
+#[allow(clippy::too_many_arguments)] // the texel, its eye and the sample, each needed
 fn target_with_visibility(
     scene: &SceneBuffers,
     params: &FrameParams,
     g: &GBufferTexel,
+    eye: Vec3,
     r: &Reservoir,
     seen: bool,
     rays: &mut u32,
@@ -196,9 +212,9 @@ fn target_with_visibility(
     if !has_hit(g) {
         return 0.0;
     }
-    let (p, n) = (vec3(g.p), vec3(g.n));
-    let target = target_pdf_of(scene, r, p, n, vec3(g.albedo));
-    if target <= 0.0 || seen || !visibility_reuse(params) || sees(scene, p, n, r, rays) {
+    let sp = shading_point(scene, g, eye);
+    let target = target_pdf_of(scene, r, &sp);
+    if target <= 0.0 || seen || !visibility_reuse(params) || sees(scene, sp.p, sp.n, r, rays) {
         target
     } else {
         0.0
@@ -256,7 +272,8 @@ pub fn temporal_pass(
     prev.m = prev.m.min(params.temporal_cap * params.candidates as f32);
 
     let mut rng = pass_rng(params, pixel as u32, STREAM_TEMPORAL);
-    let target_prev = target_with_visibility(scene, params, &g, &prev, false, rays);
+    let eye = vec3(params.camera.eye);
+    let target_prev = target_with_visibility(scene, params, &g, eye, &prev, false, rays);
     let mut out = Reservoir::empty();
     out.merge(&cur, cur.target_pdf, rng.next_f32());
     let from_prev = out.merge(&prev, target_prev, rng.next_f32());
@@ -264,7 +281,8 @@ pub fn temporal_pass(
     if unbiased(params) && out.has_sample() {
         // This pixel sees the sample (it was chosen with visibility in the target).
         let own = out.target_pdf;
-        let there = target_with_visibility(scene, params, &gp, &out, from_prev, rays);
+        let prev_eye = vec3(params.prev_camera.eye);
+        let there = target_with_visibility(scene, params, &gp, prev_eye, &out, from_prev, rays);
         z = balance_normaliser(
             cur.m * own + prev.m * there,
             if from_prev { there } else { own },
@@ -292,7 +310,8 @@ pub fn spatial_pass(
     if !has_hit(&g) {
         return own;
     }
-    let (p, n, albedo) = (vec3(g.p), vec3(g.n), vec3(g.albedo));
+    let eye = vec3(params.camera.eye);
+    let sp = shading_point(scene, &g, eye);
     let mut rng = pass_rng(params, pixel, STREAM_SPATIAL + params.spatial_pass);
     let mut out = Reservoir::empty();
     out.merge(&own, own.target_pdf, rng.next_f32());
@@ -319,7 +338,7 @@ pub fn spatial_pass(
         let neighbour = input[q as usize];
         if out.merge(
             &neighbour,
-            target_pdf_of(scene, &neighbour, p, n, albedo),
+            target_pdf_of(scene, &neighbour, &sp),
             rng.next_f32(),
         ) {
             source = n_used as u32;
@@ -337,7 +356,7 @@ pub fn spatial_pass(
         while j < n_used {
             let q = used[j] as usize;
             let from_here = j as u32 == source;
-            let t = target_with_visibility(scene, params, &gbuffer[q], &out, from_here, rays);
+            let t = target_with_visibility(scene, params, &gbuffer[q], eye, &out, from_here, rays);
             weighted += input[q].m * t;
             if from_here {
                 source_target = t;
@@ -350,7 +369,7 @@ pub fn spatial_pass(
     // A neighbour's sample may be hidden from here: test it, so that what this pass writes
     // (shown now, or read by a further spatial pass) holds only samples seen from here.
     if source != INVALID && visibility_reuse(params) {
-        keep_if_visible(scene, &mut out, p, n, rays);
+        keep_if_visible(scene, &mut out, sp.p, sp.n, rays);
     }
     out
 }
@@ -393,20 +412,23 @@ fn shaded_radiance(
     if params.max_depth < 2 {
         return radiance;
     }
-    let (p, n, albedo) = (vec3(g.p), vec3(g.n), vec3(g.albedo));
+    let eye = vec3(params.camera.eye);
+    let sp = shading_point(scene, g, eye);
     radiance += if visibility_reuse(params) {
         // The passes keep only samples this pixel sees: no shadow ray needed.
-        unshadowed_reservoir(scene, r, p, n, albedo)
+        unshadowed_reservoir(scene, r, &sp)
     } else {
-        shade_reservoir(scene, r, p, n, albedo, rays)
+        shade_reservoir(scene, r, &sp, rays)
     };
     // Beyond the direct light of the emitters: a bounce continued by NEE path tracing gives
-    // the indirect light, and at max_depth 2 the sky's direct light (as NEE's bounce does).
-    if params.max_depth > 2 || vec3(params.sky) != Vec3::ZERO {
+    // the indirect light, at max_depth 2 the sky's direct light (as NEE's bounce does), and
+    // what a glossy or specular surface reflects of the emitters (delta lobes are beyond
+    // light sampling; the continued path counts what they hit).
+    if params.max_depth > 2 || vec3(params.sky) != Vec3::ZERO || sp.bsdf.kind != BSDF_DIFFUSE {
         let mut rng = pass_rng(params, pixel, STREAM_SHADE);
-        let s = SurfaceHit::flat(p, n, g.front != 0, g.prim);
-        let mut state = PathState::camera(crate::intersect::Ray::new(p, n));
-        if state.bounce(&s, albedo, params, &mut rng) {
+        let s = SurfaceHit::flat(sp.p, sp.n, g.front != 0, g.prim);
+        let mut state = PathState::camera(crate::intersect::Ray::new(eye, -sp.wo));
+        if state.bounce(&s, &sp.bsdf, params, &mut rng) {
             radiance += trace_path(scene, params, state, &mut rng, NEE, rays);
         }
     }
