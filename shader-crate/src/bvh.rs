@@ -91,12 +91,13 @@ impl<'a> SceneBuffers<'a> {
     /// The BSDF at a surface point. A dielectric's relative index depends on the side the
     /// ray arrived on: the material's index entering through the front, its inverse leaving.
     pub fn bsdf(&self, s: &SurfaceHit) -> Bsdf {
-        self.bsdf_with_albedo(s.prim, s.front_face, self.albedo(s))
+        let m = self.material_of(s.prim);
+        self.bsdf_of(&m, s.front_face, self.albedo_of(&m, s.uv))
     }
 
-    /// `bsdf` for a point whose albedo is known (a G-buffer keeps it).
-    pub fn bsdf_with_albedo(&self, prim: u32, front_face: bool, albedo: Vec3) -> Bsdf {
-        let m = self.material_of(prim);
+    /// The BSDF of material `m` at a point whose albedo is known (a G-buffer keeps it, a
+    /// path has just looked it up).
+    pub fn bsdf_of(&self, m: &Material, front_face: bool, albedo: Vec3) -> Bsdf {
         Bsdf {
             kind: m.kind,
             albedo,
@@ -113,11 +114,15 @@ impl<'a> SceneBuffers<'a> {
     /// Diffuse albedo at a surface point: the material's texture at the point's texture
     /// coordinates, or its constant `Kd`.
     pub fn albedo(&self, s: &SurfaceHit) -> Vec3 {
-        let material = self.material_of(s.prim);
-        if material.albedo_texture == INVALID {
-            material.albedo()
+        self.albedo_of(&self.material_of(s.prim), s.uv)
+    }
+
+    /// Diffuse albedo of material `m` at texture coordinates `uv`.
+    pub fn albedo_of(&self, m: &Material, uv: Vec2) -> Vec3 {
+        if m.albedo_texture == INVALID {
+            m.albedo()
         } else {
-            sample_bilinear(self.textures, self.texels, material.albedo_texture, s.uv).truncate()
+            sample_bilinear(self.textures, self.texels, m.albedo_texture, uv).truncate()
         }
     }
 }

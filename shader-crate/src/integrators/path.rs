@@ -9,14 +9,14 @@
 //!
 //! Surfaces are two-sided with the BSDFs of `bsdf.rs`, lights one-sided, the sky a
 //! constant radiance.
-use crate::bsdf::Bsdf;
+use crate::bsdf::{Bsdf, BSDF_DIFFUSE};
 use crate::bvh::{surface_hit, SceneBuffers, SurfaceHit};
 use crate::glam::Vec3;
 use crate::integrators::ris::{self, ShadingPoint};
 use crate::integrators::PixelResult;
 use crate::intersect::Ray;
 use crate::lights::{light_pdf_area, power_heuristic, sample_light};
-use crate::math::vec3;
+use crate::math::{vec3, PI};
 use crate::rng::Rng;
 use crate::sampling::local_to_world;
 use crate::types::FrameParams;
@@ -72,7 +72,13 @@ impl PathState {
         } else {
             0.0
         };
-        let sample = bsdf.sample(s.to_local(-self.ray.dir), u1, u2, u3);
+        // A Lambertian lobe ignores where the path came from: skip the frame change.
+        let wo = if bsdf.kind == BSDF_DIFFUSE {
+            Vec3::Z
+        } else {
+            s.to_local(-self.ray.dir)
+        };
+        let sample = bsdf.sample(wo, u1, u2, u3);
         let dir = local_to_world(sample.wi, s.ns);
         if !sample.is_valid() || !s.leaves(dir) {
             return false;
@@ -115,8 +121,14 @@ pub fn direct_nee(
     if cos_light <= 0.0 || dist2 == 0.0 || !s.leaves(dir) {
         return Vec3::ZERO;
     }
-    let (wo, wi) = (s.to_local(wo), s.to_local(dir));
-    let f = bsdf.eval(wo, wi);
+    // f · cos and the BSDF's pdf; a Lambertian surface needs no shading frame for them.
+    let (f, bsdf_pdf) = if bsdf.kind == BSDF_DIFFUSE {
+        let cos = s.ns.dot(dir).max(0.0);
+        (bsdf.albedo * (cos / PI), cos / PI)
+    } else {
+        let (wo, wi) = (s.to_local(wo), s.to_local(dir));
+        (bsdf.eval(wo, wi), bsdf.pdf(wo, wi))
+    };
     if f == Vec3::ZERO {
         return Vec3::ZERO;
     }
@@ -127,7 +139,7 @@ pub fn direct_nee(
     let mut weight = 1.0;
     if mis {
         let light_pdf = ls.pdf_area * dist2 / cos_light;
-        weight = power_heuristic(light_pdf, bsdf.pdf(wo, wi));
+        weight = power_heuristic(light_pdf, bsdf_pdf);
     }
     f * ls.emission * (cos_light / dist2 / ls.pdf_area * weight)
 }
@@ -173,7 +185,7 @@ pub fn trace_path(
         if st.depth == params.max_depth {
             break;
         }
-        let bsdf = scene.bsdf(&s);
+        let bsdf = scene.bsdf_of(&material, s.front_face, scene.albedo_of(&material, s.uv));
         let wo = -st.ray.dir;
         // A delta BSDF has nothing for a light sample to find: its bounce finds the light.
         if strategy != BSDF && has_lights && !bsdf.is_delta() {

@@ -154,7 +154,7 @@ fn shading_point(scene: &SceneBuffers, g: &GBufferTexel, eye: Vec3) -> ShadingPo
         p,
         n: vec3(g.n),
         wo: (eye - p).normalize(),
-        bsdf: scene.bsdf_with_albedo(g.prim, g.front != 0, vec3(g.albedo)),
+        bsdf: scene.bsdf_of(&scene.material_of(g.prim), g.front != 0, vec3(g.albedo)),
     }
 }
 
