@@ -122,8 +122,8 @@ fn every_entry_point_the_host_dispatches_exists() {
         .iter()
         .map(|p| p.entry_point())
         .collect();
-    for i in Integrator::ALL {
-        if let Kernel::Image { entry_point, .. } = i.kernel() {
+    for kernel in Integrator::ALL.into_iter().flat_map(Integrator::kernels) {
+        if let Kernel::Image { entry_point, .. } = kernel {
             names.push(entry_point);
         }
     }
@@ -135,8 +135,8 @@ fn every_entry_point_the_host_dispatches_exists() {
         );
     }
     // ReSTIR passes bind set 1; image kernels only set 0 (their pipeline layout has one set).
-    for i in Integrator::ALL {
-        if let Kernel::Image { entry_point, .. } = i.kernel() {
+    for kernel in Integrator::ALL.into_iter().flat_map(Integrator::kernels) {
+        if let Kernel::Image { entry_point, .. } = kernel {
             assert!(
                 module[entry_point].iter().all(|b| b.0 == 0),
                 "{entry_point} binds a set the image pipeline layout does not have"

@@ -132,3 +132,48 @@ fn pt_nee_mis_agree_on_the_many_lights_scene() {
     );
     integrators_agree(&scene, 8, 16);
 }
+
+#[test]
+fn the_all_lambertian_kernels_render_what_the_general_ones_do() {
+    // The specialised variant is the general kernel with the BSDF known at compile time:
+    // on a Lambertian scene both must give the very same numbers.
+    let scene = runner::scene::load_obj(&runner::scene::default_scene_path()).unwrap();
+    assert!(scene.all_diffuse());
+    let p = FrameParams {
+        samples: 2,
+        ..params(&scene, 24, 24, 5, LIGHT_SAMPLING_POWER)
+    };
+    let buffers = scene.kernel();
+    for integrator in [
+        Integrator::Pt,
+        Integrator::Nee,
+        Integrator::Mis,
+        Integrator::Ris,
+    ] {
+        let [general, diffuse] = integrator.kernels();
+        let (
+            runner::integrator::Kernel::Image {
+                pixel: g,
+                entry_point: ge,
+            },
+            runner::integrator::Kernel::Image {
+                pixel: d,
+                entry_point: de,
+            },
+        ) = (general, diffuse)
+        else {
+            panic!("{integrator:?} is an image kernel");
+        };
+        assert_ne!(ge, de, "{integrator:?}: two entry points");
+        for y in 0..24 {
+            for x in 0..24 {
+                let (a, b) = (g(&buffers, &p, x, y), d(&buffers, &p, x, y));
+                assert_eq!(
+                    (a.sum, a.rays),
+                    (b.sum, b.rays),
+                    "{integrator:?} at ({x}, {y})"
+                );
+            }
+        }
+    }
+}

@@ -51,16 +51,41 @@ impl Integrator {
         Integrator::Restir,
     ];
 
-    /// The name `--integrator` takes, and what runs it.
-    fn table(self) -> (&'static str, Kernel) {
+    /// The name `--integrator` takes, and what runs it: for any scene, and for scenes whose
+    /// materials are all Lambertian (kernels without the other BSDFs' code: faster).
+    fn table(self) -> (&'static str, [Kernel; 2]) {
         let image = |entry_point, pixel| Kernel::Image { entry_point, pixel };
         match self {
-            Integrator::Ao => ("ao", image("entry::ao_main", ao::render_pixel)),
-            Integrator::Pt => ("pt", image("entry::pt_main", path::pt_pixel)),
-            Integrator::Nee => ("nee", image("entry::nee_main", path::nee_pixel)),
-            Integrator::Mis => ("mis", image("entry::mis_main", path::mis_pixel)),
-            Integrator::Ris => ("ris", image("entry::ris_main", path::ris_pixel)),
-            Integrator::Restir => ("restir", Kernel::Restir),
+            Integrator::Ao => ("ao", [image("entry::ao_main", ao::render_pixel); 2]),
+            Integrator::Pt => (
+                "pt",
+                [
+                    image("entry::pt_main", path::pt_pixel::<false>),
+                    image("entry::pt_diffuse_main", path::pt_pixel::<true>),
+                ],
+            ),
+            Integrator::Nee => (
+                "nee",
+                [
+                    image("entry::nee_main", path::nee_pixel::<false>),
+                    image("entry::nee_diffuse_main", path::nee_pixel::<true>),
+                ],
+            ),
+            Integrator::Mis => (
+                "mis",
+                [
+                    image("entry::mis_main", path::mis_pixel::<false>),
+                    image("entry::mis_diffuse_main", path::mis_pixel::<true>),
+                ],
+            ),
+            Integrator::Ris => (
+                "ris",
+                [
+                    image("entry::ris_main", path::ris_pixel::<false>),
+                    image("entry::ris_diffuse_main", path::ris_pixel::<true>),
+                ],
+            ),
+            Integrator::Restir => ("restir", [Kernel::Restir; 2]),
         }
     }
 
@@ -69,7 +94,13 @@ impl Integrator {
         self.table().0
     }
 
-    pub fn kernel(self) -> Kernel {
+    /// What runs this integrator on a scene (`Scene::all_diffuse` picks the variant).
+    pub fn kernel(self, all_diffuse: bool) -> Kernel {
+        self.table().1[all_diffuse as usize]
+    }
+
+    /// Both variants: for any scene, and for all-Lambertian scenes.
+    pub fn kernels(self) -> [Kernel; 2] {
         self.table().1
     }
 }

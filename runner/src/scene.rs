@@ -166,6 +166,13 @@ impl Scene {
         (lo, hi)
     }
 
+    /// Whether every material is Lambertian (the kernels have a faster variant for that).
+    pub fn all_diffuse(&self) -> bool {
+        self.materials
+            .iter()
+            .all(|m| m.kind == kernels::bsdf::BSDF_DIFFUSE)
+    }
+
     /// Length of the bounding-box diagonal: the scene's natural length scale.
     pub fn extent(&self) -> f32 {
         let (lo, hi) = self.bounds();

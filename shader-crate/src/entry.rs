@@ -69,10 +69,15 @@ macro_rules! image_kernel {
 }
 
 image_kernel!(ao_main, ao::render_pixel);
-image_kernel!(pt_main, path::pt_pixel);
-image_kernel!(nee_main, path::nee_pixel);
-image_kernel!(mis_main, path::mis_pixel);
-image_kernel!(ris_main, path::ris_pixel);
+image_kernel!(pt_main, path::pt_pixel::<false>);
+image_kernel!(nee_main, path::nee_pixel::<false>);
+image_kernel!(mis_main, path::mis_pixel::<false>);
+image_kernel!(ris_main, path::ris_pixel::<false>);
+// For scenes whose materials are all Lambertian (see `path::trace_path`).
+image_kernel!(pt_diffuse_main, path::pt_pixel::<true>);
+image_kernel!(nee_diffuse_main, path::nee_pixel::<true>);
+image_kernel!(mis_diffuse_main, path::mis_pixel::<true>);
+image_kernel!(ris_diffuse_main, path::ris_pixel::<true>);
 
 kernel!(restir_primary, |scene,
                          params,

@@ -120,6 +120,8 @@ pub struct GpuBackend {
     readback: wgpu::Buffer,
     scene_group: wgpu::BindGroup,
     timestamps: Option<Timestamps>,
+    /// Every material is Lambertian: run the kernels specialised for that.
+    all_diffuse: bool,
     restir: Option<RestirState<wgpu::Buffer, wgpu::Buffer>>,
     restir_pass_ms: Vec<(&'static str, f64)>,
     /// Submitted by `submit_pass`, not yet waited for by `finish_pass`.
@@ -207,6 +209,7 @@ impl GpuBackend {
             readback,
             scene_group,
             timestamps,
+            all_diffuse: scene.all_diffuse(),
             restir: None,
             restir_pass_ms: Vec::new(),
             in_flight: None,
@@ -326,8 +329,9 @@ impl GpuBackend {
         if self.in_flight.is_some() {
             bail!("internal: a pass was submitted before the previous one finished");
         }
-        self.ctx.ensure_pipelines(integrator)?;
-        let Kernel::Image { entry_point, .. } = integrator.kernel() else {
+        let kernel = integrator.kernel(self.all_diffuse);
+        self.ctx.ensure_pipelines(kernel)?;
+        let Kernel::Image { entry_point, .. } = kernel else {
             return self.submit_restir_frame(params);
         };
         let start = Instant::now();

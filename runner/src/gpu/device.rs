@@ -5,7 +5,7 @@ use std::sync::{Arc, Mutex};
 use super::pipelines::Pipelines;
 use crate::bail;
 use crate::error::{Error, Result};
-use crate::integrator::Integrator;
+use crate::integrator::Kernel;
 
 /// A Vulkan instance; the viewer passes its display so that it can present to windows.
 pub fn instance(display: Option<Box<dyn wgpu::wgt::WgpuHasDisplayHandle>>) -> wgpu::Instance {
@@ -100,9 +100,9 @@ impl GpuContext {
         Ok(ctx)
     }
 
-    /// Make the pipelines `integrator` runs, if not made yet.
-    pub fn ensure_pipelines(&mut self, integrator: Integrator) -> Result<()> {
-        self.pipelines.ensure(&self.device, integrator);
+    /// Make the pipelines `kernel` runs, if not made yet.
+    pub fn ensure_pipelines(&mut self, kernel: Kernel) -> Result<()> {
+        self.pipelines.ensure(&self.device, kernel);
         self.check_errors()
     }
 

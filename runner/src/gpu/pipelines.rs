@@ -24,9 +24,9 @@ pub fn spirv_words() -> Vec<u32> {
         .collect()
 }
 
-/// The compute entry points an integrator runs: its image kernel, or ReSTIR's passes.
-pub fn entry_points(integrator: Integrator) -> Vec<&'static str> {
-    match integrator.kernel() {
+/// The compute entry points of a kernel: an image kernel's one, or ReSTIR's passes.
+pub fn entry_points(kernel: Kernel) -> Vec<&'static str> {
+    match kernel {
         Kernel::Image { entry_point, .. } => vec![entry_point],
         Kernel::Restir => RestirPass::ENTRY_POINTS
             .iter()
@@ -50,7 +50,14 @@ pub struct Pipelines {
 
 impl Pipelines {
     pub fn new(device: &wgpu::Device) -> Self {
-        let names = Integrator::ALL.into_iter().flat_map(entry_points);
+        let mut names: Vec<&'static str> = Integrator::ALL
+            .into_iter()
+            .flat_map(Integrator::kernels)
+            .flat_map(entry_points)
+            .collect();
+        names.sort_unstable();
+        names.dedup();
+        let names = names.into_iter();
         let entry_points: Vec<wgpu::PassthroughShaderEntryPoint> = names
             .map(|name| wgpu::PassthroughShaderEntryPoint {
                 name: Cow::Borrowed(name),
@@ -91,13 +98,13 @@ impl Pipelines {
         }
     }
 
-    /// Make the pipelines `integrator` runs, if not made yet.
-    pub fn ensure(&mut self, device: &wgpu::Device, integrator: Integrator) {
-        let layout = match integrator.kernel() {
+    /// Make the pipelines `kernel` runs, if not made yet.
+    pub fn ensure(&mut self, device: &wgpu::Device, kernel: Kernel) {
+        let layout = match kernel {
             Kernel::Image { .. } => &self.image_pipeline_layout,
             Kernel::Restir => &self.restir_pipeline_layout,
         };
-        for name in entry_points(integrator) {
+        for name in entry_points(kernel) {
             if self.made.contains_key(name) {
                 continue;
             }

@@ -138,7 +138,7 @@ pub fn initial_pass(
     }
     let sp = shading_point(scene, g, vec3(params.camera.eye));
     let mut rng = pass_rng(params, pixel, STREAM_INITIAL);
-    let mut r = initial_candidates(scene, params, &sp, &mut rng);
+    let mut r = initial_candidates::<false>(scene, params, &sp, &mut rng);
     r.finalize(r.m);
     if visibility_reuse(params) {
         keep_if_visible(scene, &mut r, sp.p, sp.n, rays);
@@ -213,7 +213,7 @@ fn target_with_visibility(
         return 0.0;
     }
     let sp = shading_point(scene, g, eye);
-    let target = target_pdf_of(scene, r, &sp);
+    let target = target_pdf_of::<false>(scene, r, &sp);
     if target <= 0.0 || seen || !visibility_reuse(params) || sees(scene, sp.p, sp.n, r, rays) {
         target
     } else {
@@ -338,7 +338,7 @@ pub fn spatial_pass(
         let neighbour = input[q as usize];
         if out.merge(
             &neighbour,
-            target_pdf_of(scene, &neighbour, &sp),
+            target_pdf_of::<false>(scene, &neighbour, &sp),
             rng.next_f32(),
         ) {
             source = n_used as u32;
@@ -416,9 +416,9 @@ fn shaded_radiance(
     let sp = shading_point(scene, g, eye);
     radiance += if visibility_reuse(params) {
         // The passes keep only samples this pixel sees: no shadow ray needed.
-        unshadowed_reservoir(scene, r, &sp)
+        unshadowed_reservoir::<false>(scene, r, &sp)
     } else {
-        shade_reservoir(scene, r, &sp, rays)
+        shade_reservoir::<false>(scene, r, &sp, rays)
     };
     // Beyond the direct light of the emitters: a bounce continued by NEE path tracing gives
     // the indirect light, at max_depth 2 the sky's direct light (as NEE's bounce does), and
@@ -429,7 +429,7 @@ fn shaded_radiance(
         let s = SurfaceHit::flat(sp.p, sp.n, g.front != 0, g.prim);
         let mut state = PathState::camera(crate::intersect::Ray::new(eye, -sp.wo));
         if state.bounce(&s, &sp.bsdf, params, &mut rng) {
-            radiance += trace_path(scene, params, state, &mut rng, NEE, rays);
+            radiance += trace_path::<false>(scene, params, state, &mut rng, NEE, rays);
         }
     }
     radiance

@@ -44,8 +44,10 @@ impl ShadingPoint {
 }
 
 /// The unshadowed contribution f · Le · G of a light point at a surface point (RGB).
-pub fn unshadowed(sp: &ShadingPoint, q: Vec3, nq: Vec3, le: Vec3) -> Vec3 {
-    if sp.bsdf.kind == BSDF_DIFFUSE {
+/// `ALL_DIFFUSE` (here and below) promises a Lambertian BSDF, so that the kernels of
+/// all-Lambertian scenes carry no other BSDF's code (see `path::trace_path`).
+pub fn unshadowed<const ALL_DIFFUSE: bool>(sp: &ShadingPoint, q: Vec3, nq: Vec3, le: Vec3) -> Vec3 {
+    if ALL_DIFFUSE || sp.bsdf.kind == BSDF_DIFFUSE {
         // The course's formula; the general one below gives the same, slower.
         return (sp.bsdf.albedo / PI) * le * geometry_term(sp.p, sp.n, q, nq);
     }
@@ -62,21 +64,25 @@ pub fn unshadowed(sp: &ShadingPoint, q: Vec3, nq: Vec3, le: Vec3) -> Vec3 {
 }
 
 /// The scalar target function p̂: luminance of the unshadowed contribution.
-pub fn target_pdf(sp: &ShadingPoint, q: Vec3, nq: Vec3, le: Vec3) -> f32 {
-    luminance(unshadowed(sp, q, nq, le))
+pub fn target_pdf<const ALL_DIFFUSE: bool>(sp: &ShadingPoint, q: Vec3, nq: Vec3, le: Vec3) -> f32 {
+    luminance(unshadowed::<ALL_DIFFUSE>(sp, q, nq, le))
 }
 
 /// p̂ of a reservoir's sample at another surface point (reuse re-evaluates it there).
-pub fn target_pdf_of(scene: &SceneBuffers, r: &Reservoir, sp: &ShadingPoint) -> f32 {
+pub fn target_pdf_of<const ALL_DIFFUSE: bool>(
+    scene: &SceneBuffers,
+    r: &Reservoir,
+    sp: &ShadingPoint,
+) -> f32 {
     if !r.has_sample() {
         return 0.0;
     }
     let (q, nq, le) = light_point(scene, r.triangle, r.b1, r.b2);
-    target_pdf(sp, q, nq, le)
+    target_pdf::<ALL_DIFFUSE>(sp, q, nq, le)
 }
 
 /// Stream `params.candidates` light samples through a reservoir (not yet finalised).
-pub fn initial_candidates(
+pub fn initial_candidates<const ALL_DIFFUSE: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
     sp: &ShadingPoint,
@@ -89,7 +95,7 @@ pub fn initial_candidates(
     let mut i = 0;
     while i < params.candidates {
         let ls = sample_light(scene, params.light_sampling, rng);
-        let p_hat = target_pdf(sp, ls.p, ls.n, ls.emission);
+        let p_hat = target_pdf::<ALL_DIFFUSE>(sp, ls.p, ls.n, ls.emission);
         r.update(
             ls.triangle,
             ls.b1,
@@ -112,15 +118,19 @@ fn contributing_light(scene: &SceneBuffers, r: &Reservoir) -> Option<(Vec3, Vec3
 }
 
 /// A finalised reservoir's contribution without visibility: f · Le · G · W.
-pub fn unshadowed_reservoir(scene: &SceneBuffers, r: &Reservoir, sp: &ShadingPoint) -> Vec3 {
+pub fn unshadowed_reservoir<const ALL_DIFFUSE: bool>(
+    scene: &SceneBuffers,
+    r: &Reservoir,
+    sp: &ShadingPoint,
+) -> Vec3 {
     match contributing_light(scene, r) {
-        Some((q, nq, le)) => unshadowed(sp, q, nq, le) * r.w,
+        Some((q, nq, le)) => unshadowed::<ALL_DIFFUSE>(sp, q, nq, le) * r.w,
         None => Vec3::ZERO,
     }
 }
 
 /// Shade a finalised reservoir: f · Le · G · V · W, one shadow ray.
-pub fn shade_reservoir(
+pub fn shade_reservoir<const ALL_DIFFUSE: bool>(
     scene: &SceneBuffers,
     r: &Reservoir,
     sp: &ShadingPoint,
@@ -129,7 +139,7 @@ pub fn shade_reservoir(
     let Some((q, nq, le)) = contributing_light(scene, r) else {
         return Vec3::ZERO;
     };
-    let contribution = unshadowed(sp, q, nq, le) * r.w;
+    let contribution = unshadowed::<ALL_DIFFUSE>(sp, q, nq, le) * r.w;
     if contribution == Vec3::ZERO {
         return Vec3::ZERO;
     }
@@ -143,14 +153,14 @@ pub fn shade_reservoir(
 /// Direct light at a surface point by RIS (the `ris` integrator's first vertex). The
 /// shading normal throughout: RIS's target and shadow ray see the surface as the G-buffer
 /// of ReSTIR does.
-pub fn direct_ris(
+pub fn direct_ris<const ALL_DIFFUSE: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
     sp: &ShadingPoint,
     rng: &mut Rng,
     rays: &mut u32,
 ) -> Vec3 {
-    let mut r = initial_candidates(scene, params, sp, rng);
+    let mut r = initial_candidates::<ALL_DIFFUSE>(scene, params, sp, rng);
     r.finalize(r.m);
-    shade_reservoir(scene, &r, sp, rays)
+    shade_reservoir::<ALL_DIFFUSE>(scene, &r, sp, rays)
 }
