@@ -9,6 +9,7 @@ pub mod cpu;
 pub mod error;
 pub mod fuzz;
 pub mod generate;
+pub mod gltf_scene;
 pub mod gpu;
 pub mod integrator;
 pub mod lights;

@@ -496,6 +496,7 @@ fn parse_obj(
                         // The texture is the albedo (exporters often write Kd 0 beside it).
                         if let Some(index) = index {
                             material.albedo_texture = index;
+                            material.albedo = [1.0; 3];
                         }
                     }
                     material
@@ -838,7 +839,9 @@ pub fn load(args: &SceneOptions) -> Result<Scene> {
         .clone()
         .unwrap_or_else(|| PathBuf::from("cornell-box"));
     let name = path.to_string_lossy();
-    let scene = if path.is_file()
+    let scene = if crate::gltf_scene::is_gltf(&path) {
+        crate::gltf_scene::load(&path)?
+    } else if path.is_file()
         || path
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("obj"))

@@ -117,12 +117,14 @@ impl<'a> SceneBuffers<'a> {
         self.albedo_of(&self.material_of(s.prim), s.uv)
     }
 
-    /// Diffuse albedo of material `m` at texture coordinates `uv`.
+    /// Diffuse albedo of material `m` at texture coordinates `uv`: its colour, times its
+    /// texture's when it has one.
     pub fn albedo_of(&self, m: &Material, uv: Vec2) -> Vec3 {
         if m.albedo_texture == INVALID {
             m.albedo()
         } else {
-            sample_bilinear(self.textures, self.texels, m.albedo_texture, uv).truncate()
+            m.albedo()
+                * sample_bilinear(self.textures, self.texels, m.albedo_texture, uv).truncate()
         }
     }
 }

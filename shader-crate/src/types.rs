@@ -68,8 +68,8 @@ impl Triangle {
 }
 
 /// A surface's BSDF (`kind`: one of `bsdf::BSDF_*`) and its one-sided emitted radiance
-/// (`Ke`). `albedo` is the diffuse colour (`Kd`, or the texture `map_Kd` when
-/// `albedo_texture` is not `INVALID`), `specular` a conductor's reflectance at normal
+/// (`Ke`). `albedo` is the diffuse colour (`Kd`; times the texture `albedo_texture` unless
+/// that is `INVALID`), `specular` a conductor's reflectance at normal
 /// incidence, `alpha` the GGX roughness α and `ior` the index of refraction of a
 /// dielectric or of a coat.
 #[repr(C)]

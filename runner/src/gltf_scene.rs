@@ -1,0 +1,292 @@
+//! glTF 2.0 scenes (`.gltf` with external or embedded buffers and images, `.glb`) through
+//! the `gltf` crate: the default scene's nodes with their transforms, triangle primitives
+//! with normals and texture coordinates, materials mapped onto our BSDF family, base
+//! colour textures, and the first camera as the default view.
+//!
+//! Material mapping (the metallic-roughness model; α = roughness²):
+//! - `KHR_materials_transmission` > 0: a dielectric of index `KHR_materials_ior` (1.5);
+//! - metallic ≥ 0.5: a conductor of reflectance baseColor (a binary choice: no blend);
+//! - `KHR_materials_specular` with specularFactor 0: Lambertian baseColor;
+//! - otherwise: baseColor under a GGX dielectric coat of index ior (Lambert + GGX specular
+//!   weighted by Fresnel, as the specification's dielectric BRDF).
+//!
+//! Emission = emissiveFactor × `KHR_materials_emissive_strength`, from the front side, and
+//! from both sides when the material is `doubleSided` (the triangle is added flipped too).
+use std::path::Path;
+
+use glam::{Mat3, Mat4, Vec2, Vec3};
+use kernels::types::{
+    Material, Triangle, TriangleShading, DEFAULT_IOR, SHADING_NORMALS, SHADING_UVS,
+};
+
+use crate::bail;
+use crate::error::{Error, Result};
+use crate::scene::{CameraHint, Scene, SurfaceAttributes};
+
+/// Largest `.gltf`/`.glb` file read (its buffers and images are read by the importer).
+pub const MAX_GLTF_BYTES: u64 = 2 << 30;
+
+/// Whether `path` names a glTF file by its extension.
+pub fn is_gltf(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"))
+}
+
+/// The base colour texture of an image, as RGBA8 (8-bit formats only; others are skipped
+/// with a warning by the caller).
+fn rgba8(image: &gltf::image::Data) -> Option<image::RgbaImage> {
+    use gltf::image::Format;
+    let px = &image.pixels;
+    let rgba: Vec<u8> = match image.format {
+        Format::R8G8B8A8 => px.clone(),
+        Format::R8G8B8 => px
+            .as_chunks::<3>()
+            .0
+            .iter()
+            .flat_map(|c| [c[0], c[1], c[2], 255])
+            .collect(),
+        Format::R8G8 => px
+            .as_chunks::<2>()
+            .0
+            .iter()
+            .flat_map(|c| [c[0], c[0], c[0], c[1]])
+            .collect(),
+        Format::R8 => px.iter().flat_map(|&c| [c, c, c, 255]).collect(),
+        _ => return None,
+    };
+    image::RgbaImage::from_raw(image.width, image.height, rgba)
+}
+
+/// One glTF material on our BSDF family (see the module documentation).
+fn material(m: &gltf::Material) -> Material {
+    let pbr = m.pbr_metallic_roughness();
+    let [r, g, b, _] = pbr.base_color_factor();
+    let base = Vec3::new(r, g, b).clamp(Vec3::ZERO, Vec3::ONE);
+    let alpha = pbr.roughness_factor().clamp(0.0, 1.0).powi(2);
+    let ior = m
+        .ior()
+        .filter(|n| n.is_finite() && (1.0..=4.0).contains(n))
+        .unwrap_or(DEFAULT_IOR);
+    let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
+    let specular = m.specular().map_or(1.0, |s| s.specular_factor());
+    let mut material = if transmission > 0.0 {
+        Material::dielectric(ior, alpha)
+    } else if pbr.metallic_factor() >= 0.5 {
+        Material::conductor(base, alpha)
+    } else if specular <= 0.0 {
+        Material::new(base, Vec3::ZERO)
+    } else {
+        Material::coated(base, ior, alpha)
+    };
+    let strength = m.emissive_strength().unwrap_or(1.0);
+    let emission = Vec3::from(m.emissive_factor()) * strength;
+    if emission.is_finite() {
+        material.emission = emission.max(Vec3::ZERO).to_array();
+    }
+    material
+}
+
+/// Load a glTF 2.0 file.
+pub fn load(path: &Path) -> Result<Scene> {
+    let name = path.display().to_string();
+    let md =
+        std::fs::metadata(path).map_err(|e| Error(format!("cannot read scene '{name}': {e}")))?;
+    if !md.is_file() {
+        bail!("cannot read scene '{name}': not a regular file");
+    }
+    if md.len() > MAX_GLTF_BYTES {
+        bail!(
+            "scene '{name}' is {} bytes, over the limit of {MAX_GLTF_BYTES}",
+            md.len()
+        );
+    }
+    crate::memory::check(
+        &format!("scene '{name}'"),
+        (md.len() as f64 * crate::memory::BYTES_PER_OBJ_BYTE) as u64,
+    )?;
+    let (doc, buffers, images) =
+        gltf::import(path).map_err(|e| Error(format!("cannot load scene '{name}': {e}")))?;
+    let mut warnings = Vec::new();
+    let mut attributes = SurfaceAttributes::default();
+
+    // Images → textures, on first use by a base colour.
+    let mut texture_of_image: Vec<Option<Option<u32>>> = vec![None; images.len()];
+    let mut materials: Vec<Material> = Vec::new();
+    let mut ignored: Vec<&str> = Vec::new();
+    for m in doc.materials() {
+        let mut mat = material(&m);
+        let pbr = m.pbr_metallic_roughness();
+        if let Some(info) = pbr.base_color_texture() {
+            let image = info.texture().source().index();
+            let slot = texture_of_image[image].get_or_insert_with(|| {
+                match rgba8(&images[image]) {
+                    Some(rgba) => Some(crate::textures::add(&mut attributes, &rgba)),
+                    None => {
+                        warnings.push(format!(
+                            "'{name}': image {image} is not 8-bit ({:?}); its base colour texture is ignored",
+                            images[image].format
+                        ));
+                        None
+                    }
+                }
+            });
+            if let Some(texture) = *slot {
+                if mat.kind == kernels::bsdf::BSDF_CONDUCTOR {
+                    ignored.push("base colour textures of metals");
+                } else {
+                    mat.albedo_texture = texture;
+                }
+            }
+            if info.tex_coord() != 0 {
+                ignored.push("texture coordinate sets other than 0");
+            }
+        }
+        for (what, present) in [
+            ("normal textures", m.normal_texture().is_some()),
+            (
+                "metallic-roughness textures",
+                pbr.metallic_roughness_texture().is_some(),
+            ),
+            ("emissive textures", m.emissive_texture().is_some()),
+            (
+                "alpha modes other than OPAQUE",
+                m.alpha_mode() != gltf::material::AlphaMode::Opaque,
+            ),
+        ] {
+            if present {
+                ignored.push(what);
+            }
+        }
+        materials.push(mat);
+    }
+    // The specification's default material (white, metallic 1, roughness 1), added after
+    // the others if a primitive has no material.
+    let default_material = materials.len() as u32;
+    let mut uses_default = false;
+    let double_sided: Vec<bool> = doc.materials().map(|m| m.double_sided()).collect();
+
+    let scene = doc
+        .default_scene()
+        .or_else(|| doc.scenes().next())
+        .ok_or_else(|| Error(format!("scene '{name}' has no scene to render")))?;
+    let mut triangles = Vec::new();
+    let mut camera = None;
+    let mut stack: Vec<(gltf::Node, Mat4)> = scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+    // Node graphs are trees by the specification; a file that says otherwise must not hang.
+    let mut visited = 0usize;
+    while let Some((node, parent)) = stack.pop() {
+        visited += 1;
+        if visited > doc.nodes().len() * 4 + 16 {
+            bail!("scene '{name}': the node hierarchy is not a tree");
+        }
+        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        stack.extend(node.children().map(|c| (c, world)));
+        if let (None, Some(cam)) = (camera, node.camera()) {
+            if let gltf::camera::Projection::Perspective(p) = cam.projection() {
+                let eye = world.transform_point3(Vec3::ZERO);
+                let forward = world.transform_vector3(-Vec3::Z);
+                let up = world.transform_vector3(Vec3::Y);
+                camera = Some(CameraHint {
+                    eye,
+                    target: eye + forward.normalize_or_zero(),
+                    up,
+                    fov: p.yfov().to_degrees(),
+                });
+            }
+        }
+        let Some(mesh) = node.mesh() else { continue };
+        let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
+        let flips = Mat3::from_mat4(world).determinant() < 0.0;
+        for prim in mesh.primitives() {
+            if prim.mode() != gltf::mesh::Mode::Triangles {
+                ignored.push("primitives other than triangle lists");
+                continue;
+            }
+            let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+            let Some(positions) = reader.read_positions() else {
+                continue;
+            };
+            let positions: Vec<Vec3> = positions
+                .map(|p| world.transform_point3(Vec3::from(p)))
+                .collect();
+            let normals: Option<Vec<Vec3>> = reader.read_normals().map(|n| {
+                n.map(|n| (normal_matrix * Vec3::from(n)).normalize_or_zero())
+                    .collect()
+            });
+            // glTF's v runs down the image; our textures put v = 0 at the bottom row.
+            let uvs: Option<Vec<Vec2>> = reader
+                .read_tex_coords(0)
+                .map(|t| t.into_f32().map(|[u, v]| Vec2::new(u, 1.0 - v)).collect());
+            let indices: Vec<u32> = match reader.read_indices() {
+                Some(i) => i.into_u32().collect(),
+                None => (0..positions.len() as u32).collect(),
+            };
+            let material_index = prim.material().index();
+            let material = material_index.map_or(default_material, |i| i as u32);
+            uses_default |= material_index.is_none();
+            let two_sided_emitter =
+                material_index.is_some_and(|i| double_sided[i] && materials[i].is_emissive());
+            for face in indices.as_chunks::<3>().0 {
+                let mut corners = [face[0] as usize, face[1] as usize, face[2] as usize];
+                if flips {
+                    corners.swap(1, 2);
+                }
+                if corners.iter().any(|&c| c >= positions.len()) {
+                    bail!(
+                        "scene '{name}': index {} is out of range ({} vertices)",
+                        corners.iter().max().unwrap(),
+                        positions.len()
+                    );
+                }
+                let mut sides = vec![corners];
+                if two_sided_emitter {
+                    sides.push([corners[0], corners[2], corners[1]]);
+                }
+                for c in sides {
+                    let mut t =
+                        Triangle::new(positions[c[0]], positions[c[1]], positions[c[2]], material);
+                    let mut shading = TriangleShading::default();
+                    if let Some(n) = &normals {
+                        for (k, &i) in c.iter().enumerate() {
+                            shading.normals[3 * k..3 * k + 3].copy_from_slice(
+                                &n.get(i).copied().unwrap_or(Vec3::ZERO).to_array(),
+                            );
+                        }
+                        shading.flags |= SHADING_NORMALS;
+                    }
+                    if let Some(uv) = &uvs {
+                        for (k, &i) in c.iter().enumerate() {
+                            shading.uvs[2 * k..2 * k + 2].copy_from_slice(
+                                &uv.get(i).copied().unwrap_or(Vec2::ZERO).to_array(),
+                            );
+                        }
+                        shading.flags |= SHADING_UVS;
+                    }
+                    if shading.flags != 0 {
+                        t.shading = attributes.shading.len() as u32;
+                        attributes.shading.push(shading);
+                    }
+                    triangles.push(t);
+                }
+            }
+        }
+    }
+    if uses_default {
+        materials.push(Material::conductor(Vec3::ONE, 1.0));
+    }
+    ignored.sort_unstable();
+    let mut kinds = ignored.clone();
+    kinds.dedup();
+    for kind in kinds {
+        let n = ignored.iter().filter(|k| **k == kind).count();
+        warnings.push(format!(
+            "'{name}': {kind} ({n}) are not supported yet; ignored"
+        ));
+    }
+    let mut scene = Scene::with_attributes(triangles, materials, attributes)
+        .map_err(|e| Error(format!("scene '{name}': {e}")))?;
+    warnings.append(&mut scene.warnings);
+    scene.warnings = warnings;
+    scene.camera = camera;
+    Ok(scene)
+}

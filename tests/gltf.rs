@@ -1,0 +1,413 @@
+//! glTF 2.0 scenes: the same scene as OBJ + MTL and as glTF gives the same image; node
+//! transforms, cameras and embedded textures are read.
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use glam::Vec3;
+
+/// One mesh of a test scene: its name, material index, positions and triangle indices.
+type Object = (String, usize, Vec<[f32; 3]>, Vec<u32>);
+
+fn dir(name: &str) -> PathBuf {
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn base64(bytes: &[u8]) -> String {
+    const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut s = String::new();
+    for c in bytes.chunks(3) {
+        let n = (c[0] as u32) << 16
+            | (*c.get(1).unwrap_or(&0) as u32) << 8
+            | *c.get(2).unwrap_or(&0) as u32;
+        for k in 0..4 {
+            if k <= c.len() {
+                s.push(T[(n >> (18 - 6 * k) & 63) as usize] as char);
+            } else {
+                s.push('=');
+            }
+        }
+    }
+    s
+}
+
+/// A glTF scene from objects (name, material, positions, triangle indices), one mesh and
+/// node per object under a root node with `root_translation`, materials given as JSON.
+fn write_gltf(
+    path: &Path,
+    objects: &[Object],
+    materials: &[String],
+    root_translation: [f32; 3],
+    extra_nodes: &str,
+) {
+    let mut buffer: Vec<u8> = Vec::new();
+    let (mut views, mut accessors, mut meshes, mut nodes) = (vec![], vec![], vec![], vec![]);
+    for (i, (name, material, positions, indices)) in objects.iter().enumerate() {
+        let lo = positions.iter().fold([f32::MAX; 3], |a, p| {
+            [a[0].min(p[0]), a[1].min(p[1]), a[2].min(p[2])]
+        });
+        let hi = positions.iter().fold([f32::MIN; 3], |a, p| {
+            [a[0].max(p[0]), a[1].max(p[1]), a[2].max(p[2])]
+        });
+        let start = buffer.len();
+        buffer.extend(positions.iter().flatten().flat_map(|x| x.to_le_bytes()));
+        views.push(format!(
+            r#"{{"buffer":0,"byteOffset":{start},"byteLength":{}}}"#,
+            buffer.len() - start
+        ));
+        accessors.push(format!(
+            r#"{{"bufferView":{},"componentType":5126,"count":{},"type":"VEC3","min":{lo:?},"max":{hi:?}}}"#,
+            views.len() - 1,
+            positions.len()
+        ));
+        let start = buffer.len();
+        buffer.extend(indices.iter().flat_map(|x| x.to_le_bytes()));
+        views.push(format!(
+            r#"{{"buffer":0,"byteOffset":{start},"byteLength":{}}}"#,
+            buffer.len() - start
+        ));
+        accessors.push(format!(
+            r#"{{"bufferView":{},"componentType":5125,"count":{},"type":"SCALAR"}}"#,
+            views.len() - 1,
+            indices.len()
+        ));
+        meshes.push(format!(
+            r#"{{"name":"{name}","primitives":[{{"attributes":{{"POSITION":{}}},"indices":{},"material":{material}}}]}}"#,
+            accessors.len() - 2,
+            accessors.len() - 1
+        ));
+        nodes.push(format!(r#"{{"mesh":{i}}}"#));
+    }
+    let children: Vec<String> = (1..=objects.len()).map(|i| i.to_string()).collect();
+    let root = format!(
+        r#"{{"children":[{}],"translation":{root_translation:?}}}"#,
+        children.join(",")
+    );
+    let mut all_nodes = vec![root];
+    all_nodes.extend(nodes);
+    let mut scene_nodes = vec!["0".to_string()];
+    if !extra_nodes.is_empty() {
+        all_nodes.push(extra_nodes.to_string());
+        scene_nodes.push((all_nodes.len() - 1).to_string());
+    }
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"extensionsUsed":["KHR_materials_specular","KHR_materials_emissive_strength"],
+"scene":0,"scenes":[{{"nodes":[{}]}}],"nodes":[{}],"meshes":[{}],"materials":[{}],
+"accessors":[{}],"bufferViews":[{}],
+"buffers":[{{"byteLength":{},"uri":"data:application/octet-stream;base64,{}"}}],
+"cameras":[{{"type":"perspective","perspective":{{"yfov":0.6859,"znear":1}}}}]}}"#,
+        scene_nodes.join(","),
+        all_nodes.join(","),
+        meshes.join(","),
+        materials.join(","),
+        accessors.join(","),
+        views.join(","),
+        buffer.len(),
+        base64(&buffer)
+    );
+    std::fs::write(path, json).unwrap();
+}
+
+/// The Cornell box of assets/ as glTF objects: the OBJ's faces fan-triangulated as tobj
+/// does, Lambertian materials (KHR_materials_specular 0) with the MTL's Kd and Ke.
+fn cornell_gltf_objects() -> (Vec<Object>, Vec<String>) {
+    let names = ["white", "red", "green", "light"];
+    let kd = [
+        [0.725, 0.71, 0.68],
+        [0.63, 0.065, 0.05],
+        [0.14, 0.45, 0.091],
+        [0.78, 0.78, 0.78],
+    ];
+    let materials = names
+        .iter()
+        .zip(kd)
+        .map(|(n, c)| {
+            let emissive = if *n == "light" {
+                r#","emissiveFactor":[1.0,0.7058824,0.23529412],"extensions":{"KHR_materials_specular":{"specularFactor":0},"KHR_materials_emissive_strength":{"emissiveStrength":17}}"#
+            } else {
+                r#","extensions":{"KHR_materials_specular":{"specularFactor":0}}"#
+            };
+            format!(
+                r#"{{"name":"{n}","pbrMetallicRoughness":{{"baseColorFactor":[{},{},{},1],"metallicFactor":0,"roughnessFactor":1}}{emissive}}}"#,
+                c[0], c[1], c[2]
+            )
+        })
+        .collect();
+    let mut objects = Vec::new();
+    let mut v: Vec<[f32; 3]> = Vec::new();
+    let (mut name, mut material) = (String::new(), 0);
+    for line in runner::scene::CORNELL_BOX_OBJ.lines() {
+        let w: Vec<&str> = line.split_whitespace().collect();
+        match w.first() {
+            Some(&"o") => name = w[1].to_string(),
+            Some(&"usemtl") => material = names.iter().position(|n| *n == w[1]).unwrap(),
+            Some(&"v") => v.push([
+                w[1].parse().unwrap(),
+                w[2].parse().unwrap(),
+                w[3].parse().unwrap(),
+            ]),
+            Some(&"f") => {
+                let corners: Vec<usize> = w[1..]
+                    .iter()
+                    .map(|c| c.parse::<usize>().unwrap() - 1)
+                    .collect();
+                let positions: Vec<[f32; 3]> = corners.iter().map(|&i| v[i]).collect();
+                let mut indices = Vec::new();
+                for k in 1..corners.len() as u32 - 1 {
+                    indices.extend([0, k, k + 1]);
+                }
+                objects.push((name.clone(), material, positions, indices));
+            }
+            _ => {}
+        }
+    }
+    (objects, materials)
+}
+
+fn render(scene: &Path, out: &Path, extra: &[&str]) -> (runner::output::Image, String) {
+    let mut args = vec![
+        "render",
+        "--backend",
+        "cpu",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let o = Command::new(env!("CARGO_BIN_EXE_runner"))
+        .args(&args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{stderr}");
+    (runner::output::read_image(out).unwrap(), stderr)
+}
+
+#[test]
+fn the_cornell_box_as_gltf_renders_as_the_obj_does() {
+    let d = dir("gltf_cornell");
+    let (objects, materials) = cornell_gltf_objects();
+    // A camera node (yfov 0.6859 rad = 39.3°) at the OBJ camera's eye, looking down +z:
+    // a 180° turn about y (glTF cameras look down their -z).
+    let camera = r#"{"camera":0,"translation":[278,273,-800],"rotation":[0,1,0,0]}"#;
+    write_gltf(
+        &d.join("cornell.gltf"),
+        &objects,
+        &materials,
+        [0.0; 3],
+        camera,
+    );
+    let scene = runner::scene::load(&runner::options::SceneOptions {
+        scene: Some(d.join("cornell.gltf")),
+        width: 1,
+        height: 1,
+        eye: None,
+        target: None,
+        up: None,
+        up_axis: runner::options::UpAxis::Y,
+        fov: None,
+    })
+    .unwrap();
+    let cam = scene.camera.expect("the glTF camera is the default view");
+    assert!(
+        (cam.eye - Vec3::new(278.0, 273.0, -800.0)).length() < 1e-3,
+        "{cam:?}"
+    );
+    assert!(
+        ((cam.target - cam.eye).normalize() - Vec3::Z).length() < 1e-5,
+        "{cam:?}"
+    );
+    assert!((cam.fov - 39.3).abs() < 0.01, "{cam:?}");
+    assert!(scene.all_diffuse(), "specularFactor 0: Lambertian");
+    // Same camera flags for both: the geometry, materials and light must match exactly.
+    let flags = [
+        "--eye",
+        "278,273,-800",
+        "--target",
+        "278,273,0",
+        "--fov",
+        "39.3",
+        "--width",
+        "48",
+        "--height",
+        "48",
+        "--spp",
+        "8",
+        "--integrator",
+        "mis",
+    ];
+    let (from_obj, _) = render(
+        &runner::scene::default_scene_path(),
+        &d.join("obj.exr"),
+        &flags,
+    );
+    let (from_gltf, stderr) = render(&d.join("cornell.gltf"), &d.join("gltf.exr"), &flags);
+    assert!(!stderr.contains("warning"), "{stderr}");
+    // Identical triangles in the same order; only the light's Ke = factor × strength may
+    // round differently in its last bit.
+    let close = from_obj
+        .pixels
+        .iter()
+        .zip(&from_gltf.pixels)
+        .filter(|(a, b)| (**a - **b).abs().max_element() <= 1e-5 * a.max_element().max(1.0))
+        .count();
+    assert_eq!(close, from_obj.pixels.len(), "OBJ and glTF images differ");
+}
+
+#[test]
+fn node_transforms_place_the_meshes() {
+    let d = dir("gltf_transform");
+    let (objects, materials) = cornell_gltf_objects();
+    write_gltf(
+        &d.join("moved.gltf"),
+        &objects,
+        &materials,
+        [1000.0, -50.0, 0.0],
+        "",
+    );
+    let opts = |p: PathBuf| runner::options::SceneOptions {
+        scene: Some(p),
+        width: 1,
+        height: 1,
+        eye: None,
+        target: None,
+        up: None,
+        up_axis: runner::options::UpAxis::Y,
+        fov: None,
+    };
+    let moved = runner::scene::load(&opts(d.join("moved.gltf"))).unwrap();
+    let original = runner::scene::cornell_box().unwrap();
+    let (lo, hi) = moved.bounds();
+    let (olo, ohi) = original.bounds();
+    assert!(
+        (lo - olo - Vec3::new(1000.0, -50.0, 0.0)).length() < 1e-2,
+        "{lo} vs {olo}"
+    );
+    assert!(
+        (hi - ohi - Vec3::new(1000.0, -50.0, 0.0)).length() < 1e-2,
+        "{hi} vs {ohi}"
+    );
+    assert!(
+        moved.camera.is_none(),
+        "no camera node: the default view frames the bounds"
+    );
+}
+
+#[test]
+fn a_broken_gltf_is_one_error_line() {
+    let d = dir("gltf_broken");
+    std::fs::write(
+        d.join("broken.gltf"),
+        "{\"asset\": {\"version\": \"2.0\"}, \"meshes\": [",
+    )
+    .unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_runner"))
+        .args([
+            "render",
+            "--backend",
+            "cpu",
+            "--scene",
+            d.join("broken.gltf").to_str().unwrap(),
+            "--out",
+            d.join("x.png").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        stderr.starts_with("error: cannot load scene") && stderr.lines().count() == 1,
+        "{stderr}"
+    );
+    assert!(!d.join("x.png").exists());
+}
+
+#[test]
+fn base_colour_textures_are_read_with_gltf_texture_coordinates() {
+    // A 2x2 floor seen from above (as in tests/surfaces.rs), texture coordinates in glTF's
+    // convention (v down the image): the image must appear upright, red at the top left.
+    let d = dir("gltf_texture");
+    let texels: [[u8; 4]; 4] = [
+        [255, 0, 0, 255],
+        [0, 255, 0, 255],
+        [0, 0, 255, 255],
+        [255, 255, 255, 255],
+    ];
+    let mut png = Vec::new();
+    image::RgbaImage::from_raw(2, 2, texels.concat())
+        .unwrap()
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    let positions: [[f32; 3]; 4] = [
+        [-1.0, 0.0, -1.0],
+        [-1.0, 0.0, 1.0],
+        [1.0, 0.0, 1.0],
+        [1.0, 0.0, -1.0],
+    ];
+    // -z is the top of the image: v = 0 there in glTF.
+    let uvs: [[f32; 2]; 4] = [[0.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.0]];
+    let indices: [u32; 6] = [0, 1, 2, 0, 2, 3];
+    let mut buffer: Vec<u8> = positions
+        .iter()
+        .flatten()
+        .flat_map(|x| x.to_le_bytes())
+        .collect();
+    buffer.extend(uvs.iter().flatten().flat_map(|x| x.to_le_bytes()));
+    buffer.extend(indices.iter().flat_map(|x| x.to_le_bytes()));
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"extensionsUsed":["KHR_materials_specular"],"scene":0,"scenes":[{{"nodes":[0]}}],
+"nodes":[{{"mesh":0}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"material":0}}]}}],
+"materials":[{{"pbrMetallicRoughness":{{"baseColorTexture":{{"index":0}},"metallicFactor":0}},"extensions":{{"KHR_materials_specular":{{"specularFactor":0}}}}}}],
+"textures":[{{"source":0}}],
+"images":[{{"uri":"data:image/png;base64,{}"}}],
+"accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,-1],"max":[1,0,1]}},
+{{"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"}},{{"bufferView":2,"componentType":5125,"count":6,"type":"SCALAR"}}],
+"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":32}},{{"buffer":0,"byteOffset":80,"byteLength":24}}],
+"buffers":[{{"byteLength":{},"uri":"data:application/octet-stream;base64,{}"}}]}}"#,
+        base64(&png),
+        buffer.len(),
+        base64(&buffer)
+    );
+    std::fs::write(d.join("floor.gltf"), json).unwrap();
+    let flags = [
+        "--eye",
+        "0,3,0",
+        "--target",
+        "0,0,0",
+        "--up",
+        "0,0,-1",
+        "--fov",
+        "30",
+        "--width",
+        "64",
+        "--height",
+        "64",
+        "--spp",
+        "4",
+        "--integrator",
+        "nee",
+        "--sky",
+        "1,1,1",
+        "--max-depth",
+        "2",
+    ];
+    let (image, stderr) = render(&d.join("floor.gltf"), &d.join("floor.exr"), &flags);
+    assert!(!stderr.contains("warning: '"), "{stderr}");
+    let at = |fx: f32, fy: f32| image.pixels[((fy * 64.0) as usize) * 64 + (fx * 64.0) as usize];
+    let (lo, hi) = (0.5 - 0.311, 0.5 + 0.311);
+    for (pixel, expected, what) in [
+        (at(lo, lo), Vec3::new(1.0, 0.0, 0.0), "top left: red"),
+        (at(hi, lo), Vec3::new(0.0, 1.0, 0.0), "top right: green"),
+        (at(lo, hi), Vec3::new(0.0, 0.0, 1.0), "bottom left: blue"),
+        (at(hi, hi), Vec3::ONE, "bottom right: white"),
+    ] {
+        assert!(
+            (pixel - expected).abs().max_element() < 0.05,
+            "{what}: {pixel}"
+        );
+    }
+}
