@@ -195,8 +195,16 @@ fn degenerate_triangles_are_dropped_and_counted() {
 fn a_scene_without_emitters() {
     let obj = write("dark.obj", format!("{TRI}f 1 2 3\n").as_bytes());
     for i in ["pt", "nee", "mis", "ris", "restir"] {
-        assert_fails_with(&render_scene(&obj, &["--integrator", i]), "no emitters");
+        // A black sky asked for: nothing would light it.
+        assert_fails_with(
+            &render_scene(&obj, &["--integrator", i, "--sky", "0,0,0"]),
+            "no emitters",
+        );
     }
+    // Nothing asked for: the built-in sky lights it (tests/environment.rs), with a note.
+    let o = render_scene(&obj, &["--integrator", "nee"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && err.contains("built-in sky"), "{err}");
     // Lit by the sky instead: a warning, and a real image.
     let o = render_scene(
         &obj,

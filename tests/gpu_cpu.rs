@@ -35,7 +35,10 @@ fn kernel_args(integrator: Integrator, spp: u32) -> KernelOptions {
         no_temporal: false,
         no_visibility_reuse: false,
         max_depth: 4,
-        sky: glam::Vec3::ZERO,
+        sky: None,
+        env: None,
+        env_rotate: 0.0,
+        env_scale: 1.0,
         light_sampling: LightSampling::Power,
         ao_rays: 4,
         ao_distance: None,
@@ -55,8 +58,8 @@ fn gpu_backend(scene: &Scene, w: u32, h: u32) -> GpuBackend {
 fn render_both(integrator: Integrator, w: u32, h: u32, spp: u32) -> (Image, Image) {
     let sa = scene_args(w, h);
     let ka = kernel_args(integrator, spp);
-    let scene = load_scene(&sa).unwrap();
-    let params = frame_params(&sa, &ka, &scene).unwrap();
+    let mut scene = load_scene(&sa).unwrap();
+    let params = frame_params(&sa, &ka, &mut scene).unwrap();
     let mut gpu = gpu_backend(&scene, w, h);
     let mut cpu = CpuBackend::new(&scene, w, h);
     eprintln!("comparing {} with {}", gpu.describe(), cpu.describe());
@@ -96,8 +99,8 @@ fn split_into_passes_does_not_change_the_image() {
     // Sample s draws stream s whatever pass it falls in: 1 pass of 4 == 4 passes of 1.
     let sa = scene_args(32, 32);
     let ka = kernel_args(Integrator::Ao, 4);
-    let scene = load_scene(&sa).unwrap();
-    let params = frame_params(&sa, &ka, &scene).unwrap();
+    let mut scene = load_scene(&sa).unwrap();
+    let params = frame_params(&sa, &ka, &mut scene).unwrap();
     let mut cpu = CpuBackend::new(&scene, 32, 32);
     let (a, _) = render(&mut cpu, Integrator::Ao, &params, 4, 4, false).unwrap();
     let (b, _) = render(&mut cpu, Integrator::Ao, &params, 4, 1, false).unwrap();
@@ -181,11 +184,11 @@ fn textures_and_vertex_normals_gpu_match_cpu() {
     sa.scene = Some(dir.join("s.obj"));
     sa.eye = Some(glam::Vec3::new(0.0, 2.5, 1.5));
     sa.target = Some(glam::Vec3::ZERO);
-    let scene = load_scene(&sa).unwrap();
+    let mut scene = load_scene(&sa).unwrap();
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
     for integrator in [Integrator::Nee, Integrator::Mis, Integrator::Restir] {
         let ka = kernel_args(integrator, spp);
-        let params = frame_params(&sa, &ka, &scene).unwrap();
+        let params = frame_params(&sa, &ka, &mut scene).unwrap();
         let mut gpu = gpu_backend(&scene, w, h);
         let mut cpu = CpuBackend::new(&scene, w, h);
         let (g, _) = render(&mut gpu, integrator, &params, spp, 1, false).unwrap();

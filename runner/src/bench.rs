@@ -174,8 +174,8 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
     if !(args.warmup >= 0.0 && args.warmup <= 600.0) {
         crate::bail!("--warmup must be between 0 and 600 seconds");
     }
-    let scene = load_scene(&args.scene)?;
-    let params = frame_params(&args.scene, &args.kernel, &scene)?;
+    let mut scene = load_scene(&args.scene)?;
+    let params = frame_params(&args.scene, &args.kernel, &mut scene)?;
     let mut backend =
         crate::backend::open(args.device.backend, &scene, params.width, params.height)?;
     let k = &args.kernel;

@@ -6,6 +6,7 @@ pub mod bench;
 pub mod camera;
 pub mod cli;
 pub mod cpu;
+pub mod environment;
 pub mod error;
 pub mod fuzz;
 pub mod generate;

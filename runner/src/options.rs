@@ -71,9 +71,25 @@ pub struct KernelOptions {
     /// Path segments (Mitsuba's max_depth): 1 = emitters seen directly, 2 = + direct light
     #[arg(long, default_value_t = 8, value_name = "N")]
     pub max_depth: u32,
-    /// Radiance of rays that leave the scene
-    #[arg(long, value_parser = parse_vec3, default_value = "0,0,0", value_name = "R,G,B")]
-    pub sky: Vec3,
+    /// Radiance of rays that leave the scene, the same in every direction [default: black;
+    /// for scenes without emitters, the built-in sky: a soft white dome over a grey floor]
+    #[arg(long, value_parser = parse_vec3, value_name = "R,G,B")]
+    pub sky: Option<Vec3>,
+    /// Environment map that rays leaving the scene see: an equirectangular (latitude-
+    /// longitude) Radiance .hdr or OpenEXR file, linear, +y up (the scene's --up-axis)
+    #[arg(long, value_name = "FILE.hdr|FILE.exr")]
+    pub env: Option<PathBuf>,
+    /// Turn the environment map about the up axis by this many degrees
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        value_name = "DEG",
+        allow_hyphen_values = true
+    )]
+    pub env_rotate: f32,
+    /// Multiply the environment map (or the built-in sky) by this
+    #[arg(long, default_value_t = 1.0, value_name = "S")]
+    pub env_scale: f32,
     /// How NEE and MIS pick a light triangle
     #[arg(long, value_enum, default_value_t = LightSampling::Power)]
     pub light_sampling: LightSampling,
@@ -158,10 +174,12 @@ pub fn check_image_size(width: u32, height: u32) -> Result<()> {
 }
 
 /// Validate the options and build the kernels' parameters for the first frame.
+/// The environment map (`--env`, or the built-in sky for a scene that has no emitters and
+/// no `--sky`) is added to the scene's textures here.
 pub fn frame_params(
     args: &SceneOptions,
     kernel: &KernelOptions,
-    scene: &Scene,
+    scene: &mut Scene,
 ) -> Result<FrameParams> {
     if kernel.spp == 0 || kernel.spp > MAX_SPP {
         bail!("--spp must be between 1 and {MAX_SPP}, got {}", kernel.spp);
@@ -175,22 +193,55 @@ pub fn frame_params(
     if kernel.max_depth == 0 {
         bail!("--max-depth must be at least 1");
     }
-    if kernel.sky.min_element() < 0.0 || kernel.sky.max_element() > crate::scene::MAX_RADIANCE {
+    if let Some(sky) = kernel.sky {
+        if sky.min_element() < 0.0 || sky.max_element() > crate::scene::MAX_RADIANCE {
+            bail!(
+                "--sky must be between 0 and {:e} per channel",
+                crate::scene::MAX_RADIANCE
+            );
+        }
+    }
+    if !(kernel.env_scale > 0.0 && kernel.env_scale <= crate::scene::MAX_RADIANCE) {
         bail!(
-            "--sky must be between 0 and {:e} per channel",
+            "--env-scale must be a positive number up to {:e}",
             crate::scene::MAX_RADIANCE
         );
     }
+    if !kernel.env_rotate.is_finite() {
+        bail!("--env-rotate must be a finite number of degrees");
+    }
     let needs_lights = kernel.integrator != Integrator::Ao;
-    if needs_lights && scene.lights.is_empty() {
-        if kernel.sky == Vec3::ZERO {
+    let unlit = needs_lights && scene.lights.is_empty();
+    let (sky, env_texture) = match (&kernel.env, kernel.sky) {
+        (Some(_), Some(_)) => bail!("give --sky or --env, not both"),
+        (Some(path), None) => (
+            Vec3::splat(kernel.env_scale),
+            crate::environment::load(&mut scene.attributes, path)?,
+        ),
+        (None, Some(sky)) => (sky, kernels::types::INVALID),
+        (None, None) if unlit => {
+            eprintln!(
+                "note: the scene has no emitters; lighting it with the built-in sky \
+                 (--env FILE.hdr or --sky R,G,B to choose)"
+            );
+            (
+                Vec3::splat(kernel.env_scale),
+                crate::environment::default_sky(&mut scene.attributes),
+            )
+        }
+        (None, None) => (Vec3::ZERO, kernels::types::INVALID),
+    };
+    if unlit {
+        if sky == Vec3::ZERO {
             bail!(
                 "the scene has no emitters (no material with Ke > 0) and --sky is black: \
                  the {} image would be black; light it with --sky R,G,B or render --integrator ao",
                 kernel.integrator.name()
             );
         }
-        eprintln!("warning: the scene has no emitters; only --sky lights it");
+        if kernel.sky.is_some() {
+            eprintln!("warning: the scene has no emitters; only --sky lights it");
+        }
     }
     if kernel.candidates == 0 || kernel.candidates > MAX_CANDIDATES {
         bail!(
@@ -229,7 +280,13 @@ pub fn frame_params(
         seed: kernel.seed,
         ao_rays: kernel.ao_rays,
         ao_distance,
-        sky: kernel.sky.to_array(),
+        sky: sky.to_array(),
+        env_texture,
+        env_rotation: kernel.env_rotate.to_radians(),
+        env_up: match args.up_axis {
+            UpAxis::Y => kernels::types::ENV_UP_Y,
+            UpAxis::Z => kernels::types::ENV_UP_Z,
+        },
         max_depth: kernel.max_depth,
         light_sampling: kernel.light_sampling.kernel_value(),
         rr_depth: RUSSIAN_ROULETTE_DEPTH,

@@ -37,8 +37,8 @@ pub fn run(args: &RenderArgs) -> Result<()> {
             dir.display()
         );
     }
-    let scene = crate::scene::load(&args.scene)?;
-    let mut params = crate::options::frame_params(&args.scene, &args.kernel, &scene)?;
+    let mut scene = crate::scene::load(&args.scene)?;
+    let mut params = crate::options::frame_params(&args.scene, &args.kernel, &mut scene)?;
     // Frame F of a sequence draws the random numbers of samples F·spp onwards.
     let samples_end = (args.first_frame as u64 + args.frames as u64) * args.kernel.spp as u64;
     if samples_end > u32::MAX as u64 {

@@ -68,7 +68,7 @@ pub fn add(attributes: &mut SurfaceAttributes, image: &image::RgbaImage) -> u32 
         offset,
         width: image.width(),
         height: image.height(),
-        _pad: 0,
+        format: kernels::types::TEXTURE_SRGB8,
     });
     attributes.textures.len() as u32 - 1
 }

@@ -9,6 +9,7 @@ pub mod bindings;
 pub mod bsdf;
 pub mod bvh;
 pub mod camera;
+pub mod env;
 pub mod integrators;
 pub mod intersect;
 pub mod lights;

@@ -5,7 +5,7 @@
 use spirv_std::num_traits::Float;
 
 use crate::glam::{Vec2, Vec4};
-use crate::types::TextureInfo;
+use crate::types::{TextureInfo, TEXTURE_RGBE};
 
 /// sRGB transfer function → linear (IEC 61966-2-1).
 pub fn srgb_to_linear(c: f32) -> f32 {
@@ -16,9 +16,29 @@ pub fn srgb_to_linear(c: f32) -> f32 {
     }
 }
 
+/// An RGBE word decoded (Radiance's convention: (m + 0.5) · 2^(e − 136); e = 0 is black).
+pub fn rgbe_to_linear(w: u32) -> Vec4 {
+    let e = w >> 24;
+    if e == 0 {
+        return Vec4::new(0.0, 0.0, 0.0, 1.0);
+    }
+    // 2^(e − 136) built as a float: e − 136 + 127 = e − 9 is a valid biased exponent for
+    // every e in 10..=255; smaller ones are below what an RGBE map stores (2^-126).
+    let scale = if e > 9 {
+        f32::from_bits((e - 9) << 23)
+    } else {
+        0.0
+    };
+    let m = |shift: u32| (((w >> shift) & 0xff) as f32 + 0.5) * scale;
+    Vec4::new(m(0), m(8), m(16), 1.0)
+}
+
 /// Texel (x, y) of a texture, decoded: linear RGB and alpha.
 fn texel(texels: &[u32], info: &TextureInfo, x: u32, y: u32) -> Vec4 {
     let w = texels[(info.offset + y * info.width + x) as usize];
+    if info.format == TEXTURE_RGBE {
+        return rgbe_to_linear(w);
+    }
     let byte = |shift: u32| ((w >> shift) & 0xff) as f32 / 255.0;
     Vec4::new(
         srgb_to_linear(byte(0)),
@@ -82,7 +102,7 @@ mod tests {
             offset: 0,
             width: 2,
             height: 1,
-            _pad: 0,
+            format: 0,
         }];
         let texels = [rgba(0, 0, 0), rgba(255, 255, 255)];
         let at = |u: f32| sample_bilinear(&info, &texels, 0, Vec2::new(u, 0.5)).x;
@@ -107,7 +127,7 @@ mod tests {
             offset: 0,
             width: 1,
             height: 2,
-            _pad: 0,
+            format: 0,
         }];
         let texels = [rgba(255, 0, 0), rgba(0, 0, 255)];
         let bottom = sample_bilinear(&info, &texels, 0, Vec2::new(0.5, 0.25));

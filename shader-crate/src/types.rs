@@ -170,7 +170,7 @@ impl TriangleShading {
 }
 
 /// One texture in the texel buffer: `width × height` texels from `offset` on, row by row
-/// from the top, each an RGBA8 word (red in the low byte; colour sRGB-encoded, alpha linear).
+/// from the top, one 32-bit word each in `format`.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
@@ -178,8 +178,14 @@ pub struct TextureInfo {
     pub offset: u32,
     pub width: u32,
     pub height: u32,
-    pub _pad: u32,
+    pub format: u32,
 }
+
+/// RGBA8, red in the low byte; colour sRGB-encoded, alpha linear.
+pub const TEXTURE_SRGB8: u32 = 0;
+/// Radiance's shared-exponent RGBE (red in the low byte, the exponent in the high one):
+/// linear HDR colour in 32 bits, for environment maps.
+pub const TEXTURE_RGBE: u32 = 1;
 
 /// One emissive triangle in the light table, with its entry of the alias table that picks
 /// lights in proportion to their power (Walker/Vose): slot `i` keeps itself with
@@ -216,8 +222,9 @@ pub struct Camera {
 }
 
 /// Everything a kernel needs besides the scene buffers, for one pass over the image.
+/// (`Default` is all zeros but `env_texture`, which is `INVALID`: no environment map.)
 #[repr(C)]
-#[derive(Copy, Clone, Debug, Default, PartialEq)]
+#[derive(Copy, Clone, Debug, PartialEq)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
 pub struct FrameParams {
     pub camera: Camera,
@@ -257,8 +264,27 @@ pub struct FrameParams {
     pub spatial_pass: u32,
     /// ReSTIR: number of spatial passes per frame.
     pub spatial_passes: u32,
-    pub _reserved: [u32; 3],
+    /// Environment map (an RGBE texture, equirectangular) that rays leaving the scene see,
+    /// scaled by `sky`; `INVALID`: they see `sky` itself.
+    pub env_texture: u32,
+    /// Turn of the environment about the up axis, radians.
+    pub env_rotation: f32,
+    /// The environment's up axis: `ENV_UP_Y` or `ENV_UP_Z`.
+    pub env_up: u32,
 }
+
+#[cfg(not(target_arch = "spirv"))]
+impl Default for FrameParams {
+    fn default() -> Self {
+        Self {
+            env_texture: INVALID,
+            ..Zeroable::zeroed()
+        }
+    }
+}
+
+pub const ENV_UP_Y: u32 = 0;
+pub const ENV_UP_Z: u32 = 1;
 
 /// ReSTIR: reuse the previous frame's reservoirs (needs `prev_camera` and history).
 pub const RESTIR_TEMPORAL: u32 = 1;
@@ -271,7 +297,8 @@ pub const RESTIR_HISTORY_VALID: u32 = 4;
 pub const RESTIR_UNBIASED: u32 = 8;
 
 /// What the primary-hit pass leaves for the later ReSTIR passes. `prim == INVALID` marks a
-/// pixel whose camera ray left the scene; `front` is 1 when it hit an emitter's front.
+/// pixel whose camera ray left the scene (`n` then holds the ray's direction, for the
+/// environment); `front` is 1 when it hit an emitter's front.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]

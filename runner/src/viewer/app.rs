@@ -60,7 +60,7 @@ fn without_source_location(message: &str) -> &str {
 }
 
 /// Open the window and run until it closes (or `--exit-after` frames).
-pub fn run(args: &ViewArgs, scene: Scene) -> Result<()> {
+pub fn run(args: &ViewArgs, mut scene: Scene) -> Result<()> {
     let has_display = ["DISPLAY", "WAYLAND_DISPLAY"]
         .iter()
         .any(|v| std::env::var_os(v).is_some_and(|d| !d.is_empty()));
@@ -74,7 +74,7 @@ pub fn run(args: &ViewArgs, scene: Scene) -> Result<()> {
         ))
     })?;
     let copy = present::use_copy(args.present)?;
-    let params = frame_params(&args.scene, &args.kernel, &scene)?;
+    let params = frame_params(&args.scene, &args.kernel, &mut scene)?;
     let pose = crate::camera::camera_pose(&args.scene, &scene)?;
     let camera = FlyCamera::new(pose.eye, pose.target, pose.up, pose.fov, scene.extent());
     let mut app = App {

@@ -11,12 +11,13 @@
 //! constant radiance.
 use crate::bsdf::{Bsdf, BSDF_DIFFUSE};
 use crate::bvh::{surface_hit, SceneBuffers, SurfaceHit};
+use crate::env::escaped_radiance;
 use crate::glam::Vec3;
 use crate::integrators::ris::{self, ShadingPoint};
 use crate::integrators::PixelResult;
 use crate::intersect::Ray;
 use crate::lights::{light_pdf_area, power_heuristic, sample_light};
-use crate::math::{vec3, PI};
+use crate::math::PI;
 use crate::rng::Rng;
 use crate::sampling::local_to_world;
 use crate::types::FrameParams;
@@ -163,7 +164,7 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
         let hit = scene.closest_hit(&st.ray, f32::INFINITY);
         *rays += 1;
         if !hit.is_hit() {
-            radiance += st.throughput * vec3(params.sky);
+            radiance += st.throughput * escaped_radiance(scene, params, st.ray.dir);
             break;
         }
         let s = surface_hit(scene, &st.ray, &hit);

@@ -23,6 +23,7 @@
 use crate::bsdf::BSDF_DIFFUSE;
 use crate::bvh::{surface_hit, SceneBuffers, SurfaceHit};
 use crate::camera::jittered_ray;
+use crate::env::escaped_radiance;
 use crate::glam::Vec3;
 use crate::integrators::path::{trace_path, PathState, NEE};
 use crate::integrators::ris::{
@@ -92,6 +93,7 @@ pub fn primary_hit(
     if !hit.is_hit() {
         return GBufferTexel {
             prim: INVALID,
+            n: ray.dir.to_array(),
             ..Default::default()
         };
     }
@@ -401,7 +403,8 @@ fn shaded_radiance(
     rays: &mut u32,
 ) -> Vec3 {
     if !has_hit(g) {
-        return vec3(params.sky);
+        // A miss keeps its ray's direction where the normal would be.
+        return escaped_radiance(scene, params, vec3(g.n));
     }
     let material = scene.material_of(g.prim);
     let mut radiance = if g.front != 0 {

@@ -1,0 +1,240 @@
+//! Environment light: an equirectangular HDR map that escaping rays see, and the built-in
+//! sky that lights scenes without emitters.
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use glam::Vec3;
+
+fn runner(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_runner"))
+        .args(args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("runner binary runs")
+}
+
+fn dir(name: &str) -> PathBuf {
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// An equirectangular .hdr of 32x16 texels: `top` above the horizon, `bottom` below.
+fn write_env(path: &Path, top: f32, bottom: f32) {
+    let (w, h) = (32u32, 16u32);
+    let texels: Vec<image::Rgb<f32>> = (0..h)
+        .flat_map(|y| (0..w).map(move |_| image::Rgb([if y < h / 2 { top } else { bottom }; 3])))
+        .collect();
+    let file = std::fs::File::create(path).unwrap();
+    image::codecs::hdr::HdrEncoder::new(file)
+        .encode(&texels, w as usize, h as usize)
+        .unwrap();
+}
+
+/// A horizontal 2x2 quad of albedo 0.5 at height 0; `up` is its normal (+y or +z).
+fn write_quad(path: &Path, z_up: bool) {
+    let v = if z_up {
+        "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
+    } else {
+        "v -1 0 1\nv 1 0 1\nv 1 0 -1\nv -1 0 -1\n"
+    };
+    let stem = path.file_stem().unwrap().to_string_lossy();
+    std::fs::write(
+        path,
+        format!("mtllib {stem}.mtl\n{v}usemtl grey\nf 1 2 3 4\n"),
+    )
+    .unwrap();
+    std::fs::write(path.with_extension("mtl"), "newmtl grey\nKd 0.5 0.5 0.5\n").unwrap();
+}
+
+fn render(scene: &Path, out: &Path, extra: &[&str]) -> (runner::output::Image, String) {
+    let mut args = vec![
+        "render",
+        "--backend",
+        "cpu",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "--spp",
+        "64",
+    ];
+    args.extend_from_slice(extra);
+    let o = runner(&args);
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{stderr}");
+    (runner::output::read_image(out).unwrap(), stderr)
+}
+
+#[test]
+fn a_surface_sees_the_sky_above_it_and_not_the_ground() {
+    // Top half of the map 2.0, bottom half 0.0: a lone upward quad of albedo 0.5 sees the
+    // whole upper hemisphere at 2.0, so its radiance is 0.5 × 2.0 = 1.0 (cosine sampling of
+    // a constant: no noise; bilinear filtering darkens the rows at the horizon a little);
+    // seen from below it sees only the black ground.
+    let d = dir("env_halves");
+    write_env(&d.join("halves.hdr"), 2.0, 0.0);
+    let env = d.join("halves.hdr");
+    for (z_up, up_axis) in [(false, "y"), (true, "z")] {
+        let quad = d.join(format!("quad_{up_axis}.obj"));
+        write_quad(&quad, z_up);
+        let (above, below) = if z_up {
+            ("0,0,3", "0,0,-3")
+        } else {
+            ("0,3,0", "0,-3,0")
+        };
+        let up = if z_up { "0,1,0" } else { "0,0,-1" };
+        for integrator in ["pt", "nee", "mis", "ris", "restir"] {
+            let common = [
+                "--env",
+                env.to_str().unwrap(),
+                "--up-axis",
+                up_axis,
+                "--target",
+                "0,0,0",
+                "--up",
+                up,
+                "--fov",
+                "20",
+                "--integrator",
+                integrator,
+                "--max-depth",
+                "2",
+            ];
+            let mut args = common.to_vec();
+            args.extend(["--eye", above]);
+            let (image, _) = render(&quad, &d.join("above.exr"), &args);
+            let centre = image.pixels[16 * 32 + 16];
+            assert!(
+                (centre - Vec3::ONE).abs().max_element() < 0.02,
+                "{integrator}, {up_axis}-up, from above: {centre}"
+            );
+            let mut args = common.to_vec();
+            args.extend(["--eye", below]);
+            let (image, _) = render(&quad, &d.join("below.exr"), &args);
+            let centre = image.pixels[16 * 32 + 16];
+            // Only the bilinear blend of the two rows at the horizon reaches it (~1%).
+            assert!(
+                centre.max_element() < 0.02,
+                "{integrator}, {up_axis}-up, from below: {centre}"
+            );
+        }
+    }
+}
+
+#[test]
+fn the_camera_sees_the_map_behind_the_scene_scaled_by_env_scale() {
+    // Looking straight up sees the top half (2.0); --env-scale multiplies it.
+    let d = dir("env_background");
+    write_env(&d.join("halves.hdr"), 2.0, 0.0);
+    let quad = d.join("quad.obj");
+    write_quad(&quad, false);
+    let env = d.join("halves.hdr");
+    let (image, _) = render(
+        &quad,
+        &d.join("up.exr"),
+        &[
+            "--env",
+            env.to_str().unwrap(),
+            "--env-scale",
+            "1.5",
+            "--eye",
+            "0,5,0",
+            "--target",
+            "0,9,0",
+            "--up",
+            "0,0,1",
+            "--integrator",
+            "mis",
+        ],
+    );
+    assert!(
+        (image.pixels[0] - Vec3::splat(3.0)).abs().max_element() < 0.03,
+        "{}",
+        image.pixels[0]
+    );
+}
+
+#[test]
+fn a_scene_without_emitters_is_lit_by_the_built_in_sky() {
+    let d = dir("env_default");
+    let quad = d.join("quad.obj");
+    write_quad(&quad, false);
+    let (image, stderr) = render(
+        &quad,
+        &d.join("q.exr"),
+        &[
+            "--eye",
+            "0,3,0.1",
+            "--target",
+            "0,0,0",
+            "--integrator",
+            "mis",
+        ],
+    );
+    assert!(
+        stderr.contains("note: the scene has no emitters; lighting it with the built-in sky"),
+        "{stderr}"
+    );
+    // The built-in dome is 0.6 at the horizon rising to 1.0 overhead: an upward quad of
+    // albedo 0.5 gets between 0.3 and 0.5.
+    let centre = image.pixels[16 * 32 + 16];
+    assert!(
+        centre.min_element() > 0.3 && centre.max_element() < 0.5,
+        "{centre}"
+    );
+}
+
+#[test]
+fn bad_environments_are_refused() {
+    let d = dir("env_bad");
+    let quad = d.join("quad.obj");
+    write_quad(&quad, false);
+    write_env(&d.join("black.hdr"), 0.0, 0.0);
+    std::fs::write(d.join("garbage.hdr"), b"#?RADIANCE\nnot really").unwrap();
+    for (args, message) in [
+        (vec!["--env", "/nonexistent/sky.hdr"], "cannot read --env"),
+        (
+            vec!["--env", d.join("garbage.hdr").to_str().unwrap()],
+            "cannot decode --env",
+        ),
+        (
+            vec!["--env", d.join("black.hdr").to_str().unwrap()],
+            "is black",
+        ),
+        (
+            vec![
+                "--env",
+                d.join("black.hdr").to_str().unwrap(),
+                "--sky",
+                "1,1,1",
+            ],
+            "not both",
+        ),
+        (vec!["--env-scale", "0"], "--env-scale"),
+        (vec!["--env-rotate", "inf"], "--env-rotate"),
+    ] {
+        let out = d.join("x.png");
+        let mut all = vec![
+            "render",
+            "--backend",
+            "cpu",
+            "--scene",
+            quad.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        all.extend(args.iter().copied());
+        let o = runner(&all);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && stderr.contains("error:") && stderr.contains(message),
+            "{args:?}: {stderr}"
+        );
+        assert!(!out.exists(), "{args:?}");
+    }
+}
