@@ -147,8 +147,9 @@ fn path_integrators_gpu_match_cpu() {
 #[test]
 fn textures_and_vertex_normals_gpu_match_cpu() {
     // A textured floor with a different normal at each corner (interpolated across it),
-    // under an emitter: the texel buffer, the bilinear lookup, sRGB decoding and shading
-    // normals run on both sides.
+    // under an emitter and an environment map with a sun: the texel buffer, the bilinear
+    // lookup, sRGB and RGBE decoding, shading normals and the map's importance sampling
+    // (NEE picks it half the time) run on both sides.
     let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("gpu_cpu_surfaces");
     std::fs::create_dir_all(&dir).unwrap();
     let texels: Vec<u8> = (0..16u32 * 16)
@@ -179,6 +180,19 @@ fn textures_and_vertex_normals_gpu_match_cpu() {
          usemtl floor\nf 1/1/1 2/2/2 3/3/3 4/4/4\nusemtl light\nf 5 6 7 8\n",
     )
     .unwrap();
+    let sky: Vec<image::Rgb<f32>> = (0..16u32 * 32)
+        .map(|i| {
+            let (x, y) = (i % 32, i / 32);
+            if x == 20 && y == 4 {
+                image::Rgb([400.0, 350.0, 300.0])
+            } else {
+                image::Rgb([0.2 + 0.01 * x as f32, 0.3, 0.5 - 0.02 * y as f32])
+            }
+        })
+        .collect();
+    image::codecs::hdr::HdrEncoder::new(std::fs::File::create(dir.join("sky.hdr")).unwrap())
+        .encode(&sky, 32, 16)
+        .unwrap();
     let (w, h, spp) = (40, 40, 2);
     let mut sa = scene_args(w, h);
     sa.scene = Some(dir.join("s.obj"));
@@ -187,22 +201,34 @@ fn textures_and_vertex_normals_gpu_match_cpu() {
     let mut scene = load_scene(&sa).unwrap();
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
     for integrator in [Integrator::Nee, Integrator::Mis, Integrator::Restir] {
-        let ka = kernel_args(integrator, spp);
+        let mut ka = kernel_args(integrator, spp);
+        ka.env = Some(dir.join("sky.hdr"));
         let params = frame_params(&sa, &ka, &mut scene).unwrap();
         let mut gpu = gpu_backend(&scene, w, h);
         let mut cpu = CpuBackend::new(&scene, w, h);
         let (g, _) = render(&mut gpu, integrator, &params, spp, 1, false).unwrap();
         let (c, _) = render(&mut cpu, integrator, &params, spp, 1, false).unwrap();
         let n = g.pixels.len();
+        // The map's samples go through sin, cos and atan2, which the GPU computes a few ulps
+        // away from the CPU's libm: a sun texel's radiance / pdf then differs by ~1e-4 of a
+        // large value, and a direction on a texel edge can land in the next texel (another
+        // sample of the same distribution, as knife edges do in the other tests). So: 1e-3
+        // relative, 95% of pixels, and the means within 1e-3.
         let same = g
             .pixels
             .iter()
             .zip(&c.pixels)
-            .filter(|(a, b)| (**a - **b).abs().max_element() <= 1e-4 * a.max_element().max(1.0))
+            .filter(|(a, b)| (**a - **b).abs().max_element() <= 1e-3 * a.max_element().max(1.0))
             .count();
         assert!(g.mean().max_element() > 0.01, "{integrator:?}: lit");
         assert!(
-            same * 100 >= n * 97,
+            ((g.mean() - c.mean()).abs() / c.mean()).max_element() < 1e-3,
+            "{integrator:?}: means gpu {} cpu {}",
+            g.mean(),
+            c.mean()
+        );
+        assert!(
+            same * 100 >= n * 95,
             "{integrator:?}: only {same} of {n} pixels agree (gpu {} cpu {})",
             g.mean(),
             c.mean()

@@ -29,13 +29,70 @@ pub fn linear_to_rgbe(c: Vec3) -> u32 {
     byte(c.x) | byte(c.y) << 8 | byte(c.z) << 16 | ((e + 128).clamp(0, 255) as u32) << 24
 }
 
-/// Append an equirectangular map of `width × height` linear texels (rows from the top).
+/// The importance distribution of an equirectangular map (layout in `kernels::env`):
+/// texel weights luminance × sin θ (θ of the row's centre), so that sampling follows the
+/// radiance per solid angle. Each texel takes the largest luminance of its 3 × 3
+/// neighbourhood: bilinear filtering spreads a texel's radiance into its neighbours, and
+/// every direction with radiance must have a density (else NEE, which alone accounts for
+/// the map where it samples, would miss it). A black map has no distribution (empty).
+pub fn distribution(width: u32, height: u32, texels: &[Vec3]) -> Vec<f32> {
+    let (w, h) = (width as usize, height as usize);
+    let lum = |x: usize, y: usize| kernels::math::luminance(texels[y * w + x]).max(0.0) as f64;
+    let mut rows: Vec<Vec<f64>> = Vec::with_capacity(h);
+    for y in 0..h {
+        let sin_theta = ((y as f64 + 0.5) / h as f64 * std::f64::consts::PI).sin();
+        let mut cdf = Vec::with_capacity(w + 1);
+        let mut sum = 0.0f64;
+        cdf.push(0.0);
+        for x in 0..w {
+            let mut m = 0.0f64;
+            for ny in y.saturating_sub(1)..(y + 2).min(h) {
+                for dx in [w - 1, 0, 1] {
+                    m = m.max(lum((x + dx) % w, ny));
+                }
+            }
+            sum += m * sin_theta;
+            cdf.push(sum);
+        }
+        rows.push(cdf);
+    }
+    let total: f64 = rows.iter().map(|r| r[w]).sum();
+    if total.is_nan() || total <= 0.0 || !total.is_finite() {
+        return Vec::new();
+    }
+    let mut out = Vec::with_capacity(h + 1 + h * (w + 1));
+    let mut acc = 0.0f64;
+    out.push(0.0);
+    for r in &rows {
+        acc += r[w];
+        out.push((acc / total) as f32);
+    }
+    *out.last_mut().expect("h >= 1") = 1.0;
+    for r in &rows {
+        let row_sum = r[w];
+        for (x, v) in r.iter().enumerate() {
+            // A black row is never chosen; keep its CDF uniform so that it stays valid.
+            let value = if row_sum > 0.0 {
+                v / row_sum
+            } else {
+                x as f64 / w as f64
+            };
+            out.push(value as f32);
+        }
+        *out.last_mut().expect("w >= 1") = 1.0;
+    }
+    out
+}
+
+/// Append an equirectangular map of `width × height` linear texels (rows from the top),
+/// with its importance distribution (one map per scene).
 pub fn add_map(
     attributes: &mut SurfaceAttributes,
     width: u32,
     height: u32,
     texels: &[Vec3],
 ) -> u32 {
+    attributes.env_distribution = distribution(width, height, texels);
     let offset = attributes.texels.len() as u32;
     attributes
         .texels
@@ -124,5 +181,125 @@ mod tests {
             kernels::texture::rgbe_to_linear(linear_to_rgbe(Vec3::ZERO)).x,
             0.0
         );
+    }
+
+    /// A map with a small, very bright sun over a dim sky: the hard case.
+    fn sun_map() -> (u32, u32, Vec<Vec3>) {
+        let (w, h) = (64u32, 32u32);
+        let texels = (0..h)
+            .flat_map(|y| {
+                (0..w).map(move |x| {
+                    if (x as i32 - 40).abs() <= 1 && (y as i32 - 9).abs() <= 1 {
+                        Vec3::new(5000.0, 4500.0, 4000.0)
+                    } else if y < h / 2 {
+                        Vec3::new(0.3, 0.4, 0.6)
+                    } else {
+                        Vec3::splat(0.05)
+                    }
+                })
+            })
+            .collect();
+        (w, h, texels)
+    }
+
+    #[test]
+    fn the_sampler_follows_its_pdf() {
+        // χ² of directions drawn by `kernels::env::sample_env` against `env_pdf` integrated
+        // over solid angle per texel, for both up axes and a turned map.
+        let (w, h, texels) = sun_map();
+        let mut attributes = SurfaceAttributes::default();
+        let texture = add_map(&mut attributes, w, h, &texels);
+        let scene = crate::scene::Scene {
+            attributes,
+            ..Default::default()
+        };
+        let buffers = scene.kernel();
+        for (up, rotation) in [
+            (kernels::types::ENV_UP_Y, 0.0),
+            (kernels::types::ENV_UP_Y, 1.0),
+            (kernels::types::ENV_UP_Z, 0.0),
+            (kernels::types::ENV_UP_Z, 1.0),
+        ] {
+            let params = kernels::types::FrameParams {
+                env_texture: texture,
+                env_rotation: rotation,
+                env_up: up,
+                ..Default::default()
+            };
+            // Cells: the map's texels (rows from the top, columns), found through the map's
+            // own mapping, so that the integration below never straddles a texel edge.
+            const CZ: usize = 32;
+            const CP: usize = 64;
+            const N: u32 = 400_000;
+            let up_z = up == kernels::types::ENV_UP_Z;
+            let cell = |d: Vec3| {
+                let uv = kernels::env::equirect_uv(d, up_z, rotation);
+                let u = uv.x - uv.x.floor();
+                let iz = (((1.0 - uv.y) * CZ as f32) as usize).min(CZ - 1);
+                let ip = ((u * CP as f32) as usize).min(CP - 1);
+                iz * CP + ip
+            };
+            let mut rng = kernels::rng::Rng::from_seed(5);
+            let mut observed = vec![0u64; CZ * CP];
+            let mut mismatched = 0u32;
+            for _ in 0..N {
+                let (dir, pdf) =
+                    kernels::env::sample_env(&buffers, &params, rng.next_f32(), rng.next_f32());
+                assert!(pdf > 0.0);
+                // The density `env_pdf` gives a drawn direction is the one it was drawn
+                // with, but for directions on a texel edge (rounding puts them next door).
+                let back = kernels::env::env_pdf(&buffers, &params, dir);
+                if (back - pdf).abs() > 1e-2 * pdf {
+                    mismatched += 1;
+                }
+                observed[cell(dir)] += 1;
+            }
+            assert!(
+                mismatched * 1000 < N,
+                "{mismatched} of {N} draws disagree with env_pdf"
+            );
+            // Expected counts: ∫ pdf dω over each cell by a midpoint rule in the map's
+            // (u, θ), dω = sin θ dθ dφ.
+            const SUB: usize = 8;
+            let mut expected = vec![0f64; CZ * CP];
+            let pi = std::f64::consts::PI;
+            for iz in 0..CZ * SUB {
+                let top = (iz as f32 + 0.5) / (CZ * SUB) as f32;
+                for ip in 0..CP * SUB {
+                    let u = (ip as f32 + 0.5) / (CP * SUB) as f32;
+                    let (dir, sin_t) = kernels::env::equirect_direction(u, top, up_z, rotation);
+                    let area =
+                        sin_t as f64 * (pi / (CZ * SUB) as f64) * (2.0 * pi / (CP * SUB) as f64);
+                    expected[cell(dir)] +=
+                        kernels::env::env_pdf(&buffers, &params, dir) as f64 * area * N as f64;
+                }
+            }
+            let total: f64 = expected.iter().sum();
+            assert!(
+                (total / N as f64 - 1.0).abs() < 0.01,
+                "the pdf integrates to {}",
+                total / N as f64
+            );
+            let (mut chi2, mut dof, mut po, mut pe) = (0.0, 0usize, 0.0, 0.0);
+            for (o, e) in observed.iter().zip(&expected) {
+                if *e < 5.0 {
+                    po += *o as f64;
+                    pe += e;
+                } else {
+                    chi2 += (*o as f64 - e).powi(2) / e;
+                    dof += 1;
+                }
+            }
+            if pe >= 5.0 {
+                chi2 += (po - pe).powi(2) / pe;
+                dof += 1;
+            }
+            let k = (dof - 1) as f64;
+            let critical = k * (1.0 - 2.0 / (9.0 * k) + 3.719 * (2.0 / (9.0 * k)).sqrt()).powi(3);
+            assert!(
+                chi2 <= critical,
+                "up {up}, rotation {rotation}: χ² {chi2:.1} > {critical:.1} ({dof} cells)"
+            );
+        }
     }
 }

@@ -283,6 +283,15 @@ pub fn frame_params(
         sky: sky.to_array(),
         env_texture,
         env_rotation: kernel.env_rotate.to_radians(),
+        // Half of NEE's samples go to the map when there are emitters too (a choice by
+        // power would be better; the map's power depends on the scene's size).
+        env_light_probability: if env_texture == kernels::types::INVALID {
+            0.0
+        } else if scene.lights.is_empty() {
+            1.0
+        } else {
+            0.5
+        },
         env_up: match args.up_axis {
             UpAxis::Y => kernels::types::ENV_UP_Y,
             UpAxis::Z => kernels::types::ENV_UP_Z,

@@ -48,6 +48,8 @@ pub struct SurfaceAttributes {
     pub textures: Vec<TextureInfo>,
     /// All textures' texels, RGBA8 (see `kernels::texture`).
     pub texels: Vec<u32>,
+    /// The environment map's importance distribution (see `kernels::env`).
+    pub env_distribution: Vec<f32>,
 }
 
 impl SurfaceAttributes {
@@ -151,6 +153,7 @@ impl Scene {
             shading: &self.attributes.shading,
             textures: &self.attributes.textures,
             texels: &self.attributes.texels,
+            env_distribution: &self.attributes.env_distribution,
         }
     }
 

@@ -33,7 +33,7 @@ const fn restir(binding: u32, name: &'static str, read_only: bool) -> Binding {
 }
 
 /// Set 0, bound by every image kernel and ReSTIR pass.
-pub const SCENE: [Binding; 10] = [
+pub const SCENE: [Binding; 11] = [
     scene(0, "frame params", true),
     scene(1, "triangles", true),
     scene(2, "materials", true),
@@ -45,6 +45,7 @@ pub const SCENE: [Binding; 10] = [
     scene(7, "triangle shading attributes", true),
     scene(8, "texture table", true),
     scene(9, "texels", true),
+    scene(10, "environment distribution", true),
 ];
 
 /// Set 1, bound by the ReSTIR passes besides set 0.

@@ -51,6 +51,8 @@ pub struct SceneBuffers<'a> {
     /// The texture table and the texels it points into (see `texture.rs`).
     pub textures: &'a [TextureInfo],
     pub texels: &'a [u32],
+    /// The environment map's sampling distribution (see `env.rs`); empty without one.
+    pub env_distribution: &'a [f32],
 }
 
 impl<'a> SceneBuffers<'a> {

@@ -35,6 +35,7 @@ macro_rules! kernel {
             #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] shading: &[TriangleShading],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] textures: &[TextureInfo],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] texels: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] env_distribution: &[f32],
             $(
             #[spirv(storage_buffer, descriptor_set = 1, binding = 0)] $g_cur: &mut [GBufferTexel],
             #[spirv(storage_buffer, descriptor_set = 1, binding = 1)] $g_prev: &[GBufferTexel],
@@ -46,7 +47,9 @@ macro_rules! kernel {
             if id.x >= $params.width || id.y >= $params.height {
                 return;
             }
-            let $scene = SceneBuffers { triangles, materials, nodes, lights, shading, textures, texels };
+            let $scene = SceneBuffers {
+                triangles, materials, nodes, lights, shading, textures, texels, env_distribution,
+            };
             let ($x, $y) = (id.x, id.y);
             let $i = (id.y * $params.width + id.x) as usize;
             let mut $rays = 0u32;

@@ -1,6 +1,9 @@
 //! What a ray that leaves the scene sees: the environment map (equirectangular, linear
-//! HDR, turned about the up axis) scaled by `params.sky`, or `params.sky` itself. Rays find
-//! it by BSDF sampling; it is not light-sampled yet.
+//! HDR, turned about the up axis) scaled by `params.sky`, or `params.sky` itself; and the
+//! map's importance sampling for next-event estimation: a piecewise-constant density over
+//! texels in proportion to luminance × sin θ (marginal CDF over rows, a conditional CDF per
+//! row), built on the host. Layout of `env_distribution` for a W × H map: the marginal CDF
+//! (H + 1 values, 0 to 1), then each row's conditional CDF (W + 1 values), rows from the top.
 #[cfg(target_arch = "spirv")]
 use spirv_std::num_traits::Float;
 
@@ -23,6 +26,95 @@ pub fn equirect_uv(dir: Vec3, up_z: bool, rotation: f32) -> Vec2 {
     let longitude = d.x.atan2(-d.z) + rotation;
     let colatitude = d.y.clamp(-1.0, 1.0).acos();
     Vec2::new(longitude / (2.0 * PI) + 0.5, 1.0 - colatitude / PI)
+}
+
+/// The unit direction of equirectangular coordinates (u, row from the top in [0, 1]): the
+/// inverse of `equirect_uv`; also sin θ (θ from the map's zenith).
+pub fn equirect_direction(u: f32, top: f32, up_z: bool, rotation: f32) -> (Vec3, f32) {
+    let colatitude = top * PI;
+    let longitude = (u - 0.5) * 2.0 * PI - rotation;
+    let (sin_t, cos_t) = (colatitude.sin(), colatitude.cos());
+    let d = Vec3::new(sin_t * longitude.sin(), cos_t, -sin_t * longitude.cos());
+    let dir = if up_z { Vec3::new(d.x, -d.z, d.y) } else { d };
+    (dir, sin_t)
+}
+
+/// Index `i` with cdf[i] ≤ u < cdf[i + 1] among the `n` intervals of the CDF starting at
+/// `start` (binary search).
+fn search(cdf: &[f32], start: usize, n: u32, u: f32) -> u32 {
+    let (mut lo, mut hi) = (0u32, n);
+    while hi - lo > 1 {
+        let mid = (lo + hi) / 2;
+        if cdf[start + mid as usize] <= u {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
+}
+
+/// A direction drawn by the map's importance distribution, with its solid-angle density
+/// (0 where nothing can be drawn). `(0, 0)` without a map.
+pub fn sample_env(scene: &SceneBuffers, params: &FrameParams, u1: f32, u2: f32) -> (Vec3, f32) {
+    if params.env_texture == INVALID || scene.env_distribution.is_empty() {
+        return (Vec3::Z, 0.0);
+    }
+    let info = scene.textures[params.env_texture as usize];
+    let (w, h) = (info.width, info.height);
+    let d = scene.env_distribution;
+    let y = search(d, 0, h, u1);
+    let (m0, m1) = (d[y as usize], d[y as usize + 1]);
+    let row = (h + 1 + y * (w + 1)) as usize;
+    let x = search(d, row, w, u2);
+    let (c0, c1) = (d[row + x as usize], d[row + x as usize + 1]);
+    let (p_row, p_col) = (m1 - m0, c1 - c0);
+    if p_row <= 0.0 || p_col <= 0.0 {
+        return (Vec3::Z, 0.0);
+    }
+    // Uniform within the texel: the numbers' remainders inside the chosen intervals.
+    let fy = ((u1 - m0) / p_row).clamp(0.0, 1.0);
+    let fx = ((u2 - c0) / p_col).clamp(0.0, 1.0);
+    let (dir, sin_t) = equirect_direction(
+        (x as f32 + fx) / w as f32,
+        (y as f32 + fy) / h as f32,
+        params.env_up == ENV_UP_Z,
+        params.env_rotation,
+    );
+    if sin_t <= 0.0 {
+        return (dir, 0.0);
+    }
+    (
+        dir,
+        p_row * p_col * (w * h) as f32 / (2.0 * PI * PI * sin_t),
+    )
+}
+
+/// The solid-angle density with which `sample_env` draws `dir`.
+pub fn env_pdf(scene: &SceneBuffers, params: &FrameParams, dir: Vec3) -> f32 {
+    if params.env_texture == INVALID || scene.env_distribution.is_empty() {
+        return 0.0;
+    }
+    let info = scene.textures[params.env_texture as usize];
+    let (w, h) = (info.width, info.height);
+    let uv = equirect_uv(dir, params.env_up == ENV_UP_Z, params.env_rotation);
+    let u = uv.x - uv.x.floor();
+    let x = ((u * w as f32) as u32).min(w - 1);
+    let y = (((1.0 - uv.y) * h as f32) as u32).min(h - 1);
+    let d = scene.env_distribution;
+    let p_row = d[y as usize + 1] - d[y as usize];
+    let row = (h + 1 + y * (w + 1)) as usize;
+    let p_col = d[row + x as usize + 1] - d[row + x as usize];
+    let up = if params.env_up == ENV_UP_Z {
+        dir.z
+    } else {
+        dir.y
+    };
+    let sin_t = (1.0 - up * up).max(0.0).sqrt();
+    if sin_t <= 0.0 {
+        return 0.0;
+    }
+    p_row * p_col * (w * h) as f32 / (2.0 * PI * PI * sin_t)
 }
 
 /// Radiance arriving along `-dir` from outside the scene (a ray leaving in direction `dir`).

@@ -271,6 +271,10 @@ pub struct FrameParams {
     pub env_rotation: f32,
     /// The environment's up axis: `ENV_UP_Y` or `ENV_UP_Z`.
     pub env_up: u32,
+    /// Probability that next-event estimation samples the environment map (by its
+    /// importance distribution) rather than an emissive triangle; 0 without a map.
+    pub env_light_probability: f32,
+    pub _pad: [u32; 3],
 }
 
 #[cfg(not(target_arch = "spirv"))]
@@ -317,7 +321,7 @@ const _: () = {
     assert!(core::mem::size_of::<Triangle>() == 48);
     assert!(core::mem::size_of::<Material>() == 64);
     assert!(core::mem::size_of::<Camera>() == 64);
-    assert!(core::mem::size_of::<FrameParams>() == 224);
+    assert!(core::mem::size_of::<FrameParams>() == 240);
     assert!(core::mem::size_of::<GBufferTexel>() == 48);
     assert!(core::mem::size_of::<Light>() == 16);
     assert!(core::mem::size_of::<TriangleShading>() == 64);

@@ -84,6 +84,11 @@ pub fn check_fits(limits: &wgpu::Limits, scene: &Scene, width: u32, height: u32)
     )?;
     check_buffer_size(
         limits,
+        "the environment distribution",
+        std::mem::size_of_val(&scene.attributes.env_distribution[..]) as u64,
+    )?;
+    check_buffer_size(
+        limits,
         "the image buffer",
         pixels * ACCUMULATION_TEXEL_BYTES,
     )?;
@@ -164,6 +169,11 @@ impl GpuBackend {
         let shading = upload::<TriangleShading>(device, "shading", &scene.attributes.shading);
         let textures = upload::<TextureInfo>(device, "textures", &scene.attributes.textures);
         let texels = upload::<u32>(device, "texels", &scene.attributes.texels);
+        let env_distribution = upload::<f32>(
+            device,
+            "environment distribution",
+            &scene.attributes.env_distribution,
+        );
         let buffer = |label, size, usage| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -196,6 +206,7 @@ impl GpuBackend {
                 &shading,
                 &textures,
                 &texels,
+                &env_distribution,
             ],
         );
         let timestamps = Timestamps::new(&ctx);

@@ -11,7 +11,7 @@
 //! constant radiance.
 use crate::bsdf::{Bsdf, BSDF_DIFFUSE};
 use crate::bvh::{surface_hit, SceneBuffers, SurfaceHit};
-use crate::env::escaped_radiance;
+use crate::env::{env_pdf, escaped_radiance, sample_env};
 use crate::glam::Vec3;
 use crate::integrators::ris::{self, ShadingPoint};
 use crate::integrators::PixelResult;
@@ -43,6 +43,9 @@ pub struct PathState {
     pub depth: u32,
     pub bsdf_pdf: f32,
     pub delta: bool,
+    /// The vertex `ray` left sampled the environment map by NEE (so the map's radiance that
+    /// the ray finds is weighted against that, by MIS or not at all).
+    pub env_sampled: bool,
 }
 
 impl PathState {
@@ -53,6 +56,7 @@ impl PathState {
             depth: 1,
             bsdf_pdf: 0.0,
             delta: false,
+            env_sampled: false,
         }
     }
 
@@ -100,9 +104,22 @@ impl PathState {
     }
 }
 
+/// f · |cos| toward `dir` and the BSDF's density for it; a Lambertian surface needs no
+/// shading frame for them.
+fn bsdf_toward(s: &SurfaceHit, bsdf: &Bsdf, wo: Vec3, dir: Vec3) -> (Vec3, f32) {
+    if bsdf.kind == BSDF_DIFFUSE {
+        let cos = s.ns.dot(dir).max(0.0);
+        (bsdf.albedo * (cos / PI), cos / PI)
+    } else {
+        let (wo, wi) = (s.to_local(wo), s.to_local(dir));
+        (bsdf.eval(wo, wi), bsdf.pdf(wo, wi))
+    }
+}
+
 /// Direct light at surface `s` (viewed from `wo`) by next-event estimation: one light
-/// point, one shadow ray. With `mis`, weighted against BSDF sampling by the power
-/// heuristic.
+/// sample — a point on an emissive triangle, or with probability
+/// `params.env_light_probability` a direction of the environment map — and one shadow ray.
+/// With `mis`, weighted against BSDF sampling by the power heuristic.
 #[allow(clippy::too_many_arguments)] // the estimator's inputs, each used once
 pub fn direct_nee(
     scene: &SceneBuffers,
@@ -114,6 +131,30 @@ pub fn direct_nee(
     rng: &mut Rng,
     rays: &mut u32,
 ) -> Vec3 {
+    let p_env = params.env_light_probability;
+    // A number for the choice only when there is one to make: scenes without a map keep
+    // their random streams.
+    if p_env > 0.0 && (p_env >= 1.0 || rng.next_f32() < p_env) {
+        let (dir, pdf) = sample_env(scene, params, rng.next_f32(), rng.next_f32());
+        let light_pdf = pdf * p_env;
+        if light_pdf <= 0.0 || !s.leaves(dir) {
+            return Vec3::ZERO;
+        }
+        let (f, bsdf_pdf) = bsdf_toward(s, bsdf, wo, dir);
+        if f == Vec3::ZERO {
+            return Vec3::ZERO;
+        }
+        *rays += 1;
+        if scene.any_hit(&Ray::new(s.origin_towards(dir), dir), f32::INFINITY) {
+            return Vec3::ZERO;
+        }
+        let weight = if mis {
+            power_heuristic(light_pdf, bsdf_pdf)
+        } else {
+            1.0
+        };
+        return f * escaped_radiance(scene, params, dir) * (weight / light_pdf);
+    }
     let ls = sample_light(scene, params.light_sampling, rng);
     let to_light = ls.p - s.p;
     let dist2 = to_light.length_squared();
@@ -122,14 +163,7 @@ pub fn direct_nee(
     if cos_light <= 0.0 || dist2 == 0.0 || !s.leaves(dir) {
         return Vec3::ZERO;
     }
-    // f · cos and the BSDF's pdf; a Lambertian surface needs no shading frame for them.
-    let (f, bsdf_pdf) = if bsdf.kind == BSDF_DIFFUSE {
-        let cos = s.ns.dot(dir).max(0.0);
-        (bsdf.albedo * (cos / PI), cos / PI)
-    } else {
-        let (wo, wi) = (s.to_local(wo), s.to_local(dir));
-        (bsdf.eval(wo, wi), bsdf.pdf(wo, wi))
-    };
+    let (f, bsdf_pdf) = bsdf_toward(s, bsdf, wo, dir);
     if f == Vec3::ZERO {
         return Vec3::ZERO;
     }
@@ -137,12 +171,13 @@ pub fn direct_nee(
     if !scene.visible(s.p, s.n, ls.p, ls.n) {
         return Vec3::ZERO;
     }
+    let pdf_area = ls.pdf_area * (1.0 - p_env);
     let mut weight = 1.0;
     if mis {
-        let light_pdf = ls.pdf_area * dist2 / cos_light;
+        let light_pdf = pdf_area * dist2 / cos_light;
         weight = power_heuristic(light_pdf, bsdf_pdf);
     }
-    f * ls.emission * (cos_light / dist2 / ls.pdf_area * weight)
+    f * ls.emission * (cos_light / dist2 / pdf_area * weight)
 }
 
 /// Follow a path from `state` to its end; `rays` counts traced rays (segments and shadow
@@ -159,12 +194,20 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
 ) -> Vec3 {
     let mut radiance = Vec3::ZERO;
     let mut st = state;
-    let has_lights = !scene.lights.is_empty();
+    let p_env = params.env_light_probability;
+    let has_lights = !scene.lights.is_empty() || p_env > 0.0;
     while st.depth <= params.max_depth {
         let hit = scene.closest_hit(&st.ray, f32::INFINITY);
         *rays += 1;
         if !hit.is_hit() {
-            radiance += st.throughput * escaped_radiance(scene, params, st.ray.dir);
+            let weight = if st.depth == 1 || strategy == BSDF || st.delta || !st.env_sampled {
+                1.0
+            } else if strategy == MIS {
+                power_heuristic(st.bsdf_pdf, p_env * env_pdf(scene, params, st.ray.dir))
+            } else {
+                0.0 // NEE sampled the map there already
+            };
+            radiance += st.throughput * escaped_radiance(scene, params, st.ray.dir) * weight;
             break;
         }
         let s = surface_hit(scene, &st.ray, &hit);
@@ -176,9 +219,11 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
                 1.0
             } else if strategy == MIS {
                 let cos_light = -s.n.dot(st.ray.dir);
-                let light_pdf =
-                    light_pdf_area(scene, params.light_sampling, hit.prim) * hit.t * hit.t
-                        / cos_light.max(1e-12);
+                let light_pdf = light_pdf_area(scene, params.light_sampling, hit.prim)
+                    * (1.0 - p_env)
+                    * hit.t
+                    * hit.t
+                    / cos_light.max(1e-12);
                 power_heuristic(st.bsdf_pdf, light_pdf)
             } else {
                 0.0 // NEE and RIS already counted it as direct light
@@ -196,8 +241,12 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
         };
         let wo = -st.ray.dir;
         // A delta BSDF has nothing for a light sample to find: its bounce finds the light.
-        if strategy != BSDF && has_lights && !bsdf.is_delta() {
-            let direct = if strategy == RIS && st.depth == 1 {
+        let sample_lights = strategy != BSDF && has_lights && !bsdf.is_delta();
+        // RIS's first vertex resamples emissive triangles only; NEE anywhere else.
+        let ris_here = strategy == RIS && st.depth == 1;
+        st.env_sampled = sample_lights && !ris_here && p_env > 0.0;
+        if sample_lights {
+            let direct = if ris_here {
                 ris::direct_ris::<ALL_DIFFUSE>(
                     scene,
                     params,
