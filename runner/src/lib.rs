@@ -18,6 +18,7 @@ pub mod logging;
 pub mod memory;
 pub mod options;
 pub mod output;
+pub mod ply_scene;
 pub mod render;
 pub mod restir;
 pub mod scene;

@@ -30,7 +30,7 @@ pub const RUSSIAN_ROULETTE_DEPTH: u32 = 3;
 /// Scene, camera and image options shared by `render`, `bench` and `view`.
 #[derive(Args, Debug, Clone)]
 pub struct SceneOptions {
-    /// OBJ scene file (MTL files next to it), glTF 2.0 (.gltf, .glb), or a built-in scene: cornell-box,
+    /// OBJ scene file (MTL files next to it), glTF 2.0 (.gltf, .glb), PLY, or a built-in scene: cornell-box,
     /// many-lights, light-hall, rocks-<N> (N triangles, e.g. rocks-1m) [default: cornell-box]
     #[arg(long, value_name = "FILE|NAME")]
     pub scene: Option<PathBuf>,

@@ -844,6 +844,8 @@ pub fn load(args: &SceneOptions) -> Result<Scene> {
     let name = path.to_string_lossy();
     let scene = if crate::gltf_scene::is_gltf(&path) {
         crate::gltf_scene::load(&path)?
+    } else if crate::ply_scene::is_ply(&path) {
+        crate::ply_scene::load(&path)?
     } else if path.is_file()
         || path
             .extension()

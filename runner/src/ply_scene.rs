@@ -1,0 +1,150 @@
+//! PLY meshes (ASCII and binary, as scanners write them) through the `ply-rs-bw` crate:
+//! `vertex` elements with x, y, z (and nx, ny, nz as vertex normals when present), `face`
+//! elements with a `vertex_indices` (or `vertex_index`) list, polygons fan-triangulated.
+//! A PLY carries no material: surfaces are Lambertian grey (`scene::DEFAULT_ALBEDO`).
+use std::path::Path;
+
+use glam::Vec3;
+use kernels::types::{Material, Triangle, TriangleShading, SHADING_NORMALS};
+use ply_rs_bw::ply::Property;
+
+use crate::bail;
+use crate::error::{Error, Result};
+use crate::scene::{read_input_file, Scene, SurfaceAttributes, DEFAULT_ALBEDO};
+
+/// Largest PLY file read.
+pub const MAX_PLY_BYTES: u64 = 2 << 30;
+/// Bytes of memory per byte of PLY file while it is parsed (the parser keeps a map of
+/// properties per element: about 16x a binary file, measured loosely; text is smaller).
+const BYTES_PER_PLY_BYTE: f64 = 16.0;
+
+pub fn is_ply(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("ply"))
+}
+
+/// A scalar property as f32.
+fn scalar(p: &Property) -> Option<f32> {
+    Some(match *p {
+        Property::Char(v) => v as f32,
+        Property::UChar(v) => v as f32,
+        Property::Short(v) => v as f32,
+        Property::UShort(v) => v as f32,
+        Property::Int(v) => v as f32,
+        Property::UInt(v) => v as f32,
+        Property::Float(v) => v,
+        Property::Double(v) => v as f32,
+        _ => return None,
+    })
+}
+
+/// A list property as indices (negative entries are refused by the caller as out of range).
+fn indices(p: &Property) -> Option<Vec<i64>> {
+    Some(match p {
+        Property::ListChar(v) => v.iter().map(|&x| x as i64).collect(),
+        Property::ListUChar(v) => v.iter().map(|&x| x as i64).collect(),
+        Property::ListShort(v) => v.iter().map(|&x| x as i64).collect(),
+        Property::ListUShort(v) => v.iter().map(|&x| x as i64).collect(),
+        Property::ListInt(v) => v.iter().map(|&x| x as i64).collect(),
+        Property::ListUInt(v) => v.iter().map(|&x| x as i64).collect(),
+        _ => return None,
+    })
+}
+
+pub fn load(path: &Path) -> Result<Scene> {
+    let name = path.display().to_string();
+    if let Ok(md) = std::fs::metadata(path) {
+        crate::memory::check(
+            &format!("scene '{name}'"),
+            (md.len() as f64 * BYTES_PER_PLY_BYTE) as u64,
+        )?;
+    }
+    let bytes = match read_input_file(path, MAX_PLY_BYTES) {
+        Ok(b) => b,
+        Err(e) => bail!("cannot read scene '{name}': {e}"),
+    };
+    let parser = ply_rs_bw::parser::Parser::<ply_rs_bw::ply::DefaultElement>::new();
+    let ply = parser
+        .read_ply(&mut std::io::Cursor::new(bytes))
+        // The parser's messages span lines; ours are one.
+        .map_err(|e| {
+            let e = e.to_string();
+            let e = e.split_whitespace().collect::<Vec<_>>().join(" ");
+            Error(format!("cannot load scene '{name}': {e}"))
+        })?;
+    let no_vertices = Vec::new();
+    let vertices = ply.payload.get("vertex").unwrap_or(&no_vertices);
+    let mut positions = Vec::with_capacity(vertices.len());
+    let mut normals = Vec::with_capacity(vertices.len());
+    for (i, v) in vertices.iter().enumerate() {
+        let get = |k: &str| v.get(k).and_then(scalar);
+        let (Some(x), Some(y), Some(z)) = (get("x"), get("y"), get("z")) else {
+            bail!("scene '{name}': vertex {i} has no x, y, z");
+        };
+        let p = Vec3::new(x, y, z);
+        if !p.is_finite() {
+            bail!("scene '{name}': vertex {i} is not finite ({p})");
+        }
+        positions.push(p);
+        if let (Some(nx), Some(ny), Some(nz)) = (get("nx"), get("ny"), get("nz")) {
+            normals.push(Vec3::new(nx, ny, nz));
+        }
+    }
+    let has_normals = !normals.is_empty() && normals.len() == positions.len();
+    let mut warnings = Vec::new();
+    if vertices
+        .first()
+        .is_some_and(|v| v.contains_key("red") || v.contains_key("diffuse_red"))
+    {
+        warnings.push(format!(
+            "'{name}': vertex colours are not supported yet; the surface is grey"
+        ));
+    }
+    let mut triangles = Vec::new();
+    let mut attributes = SurfaceAttributes::default();
+    let no_faces = Vec::new();
+    for (f, face) in ply
+        .payload
+        .get("face")
+        .unwrap_or(&no_faces)
+        .iter()
+        .enumerate()
+    {
+        let Some(list) = face
+            .get("vertex_indices")
+            .or_else(|| face.get("vertex_index"))
+            .and_then(indices)
+        else {
+            bail!("scene '{name}': face {f} has no vertex_indices list");
+        };
+        if let Some(&bad) = list
+            .iter()
+            .find(|&&k| k < 0 || k as usize >= positions.len())
+        {
+            bail!(
+                "scene '{name}': face {f} refers to vertex {bad} of {}",
+                positions.len()
+            );
+        }
+        for k in 1..list.len().saturating_sub(1) {
+            let c = [list[0] as usize, list[k] as usize, list[k + 1] as usize];
+            let mut t = Triangle::new(positions[c[0]], positions[c[1]], positions[c[2]], 0);
+            if has_normals {
+                let mut shading = TriangleShading::default();
+                for (j, &i) in c.iter().enumerate() {
+                    shading.normals[3 * j..3 * j + 3].copy_from_slice(&normals[i].to_array());
+                }
+                shading.flags = SHADING_NORMALS;
+                t.shading = attributes.shading.len() as u32;
+                attributes.shading.push(shading);
+            }
+            triangles.push(t);
+        }
+    }
+    let materials = vec![Material::new(Vec3::splat(DEFAULT_ALBEDO), Vec3::ZERO)];
+    let mut scene = Scene::with_attributes(triangles, materials, attributes)
+        .map_err(|e| Error(format!("scene '{name}': {e}")))?;
+    warnings.append(&mut scene.warnings);
+    scene.warnings = warnings;
+    Ok(scene)
+}
