@@ -906,3 +906,34 @@ fn scenes_too_large_for_memory_are_refused_with_numbers() {
     }
     assert!(!obj.exists());
 }
+
+#[test]
+fn stacks_of_duplicate_triangles_load() {
+    // 20,000 copies of one triangle (exporters write such stacks): their BVH was 2,857
+    // levels deep and took 16 s to build before being refused. The duplicates are dropped
+    // with a warning, and the scene renders.
+    let mut text = String::from(TRI);
+    for _ in 0..20_000 {
+        text += "f 1 2 3\n";
+    }
+    let obj = write("duplicates.obj", text.as_bytes());
+    let o = render_scene(&obj, &["--integrator", "ao"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("dropped 19999 duplicate triangle(s)"), "{err}");
+}
+
+#[test]
+fn usemtl_before_mtllib_still_finds_its_material() {
+    // The format does not order the two; tobj resolves names as it reads, so this face
+    // used to come out grey without a word.
+    let scene = runner::scene::parse_obj_text(
+        "late_mtllib.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\nmtllib late.mtl\n",
+        Some("newmtl red\nKd 0.9 0.1 0.1\n"),
+    )
+    .unwrap();
+    let t = scene.triangles[0];
+    assert_eq!(scene.materials[t.material as usize].albedo, [0.9, 0.1, 0.1]);
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+}

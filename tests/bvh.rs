@@ -8,7 +8,7 @@ use glam::Vec3;
 use kernels::bvh::{brute_force_any_hit, brute_force_closest_hit, bvh2_traverse, cwbvh_traverse};
 use kernels::intersect::{Hit, Ray};
 use kernels::rng::Rng;
-use kernels::types::Triangle;
+use kernels::types::{Material, Triangle};
 use runner::accel::{build_bvh2, build_cwbvh, reorder};
 use runner::scene::default_scene_path;
 
@@ -201,13 +201,13 @@ fn depths_of_built_bvhs_are_measured() {
 
 #[test]
 fn fuzzer_found_deep_bvh_is_refused_not_mis_traversed() {
+    // The fuzzer's input is a stack of identical triangles: the loader now drops the
+    // duplicates (with a warning), and what is left renders.
     let data = std::fs::read(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../tests/fuzz/regressions/deep_bvh_coincident_triangles"
     ))
     .unwrap();
-    // The default build (CWBVH) renders it; its binary BVH is deeper than BVH2's stack, so
-    // a `traversal-bvh2` build refuses it (check_depth) instead of dropping subtrees.
     let image =
         runner::fuzz::load_and_render_bytes(&data).expect("renders with the default traversal");
     assert!(image.pixels.iter().all(|p| p.is_finite()));
@@ -216,17 +216,38 @@ fn fuzzer_found_deep_bvh_is_refused_not_mis_traversed() {
     )
     .into_owned();
     let scene = runner::scene::parse_obj_text("deep", &obj, None).unwrap();
-    let d2 = runner::accel::bvh2_depth(&build_bvh2(&scene.triangles).nodes);
-    let dc = runner::accel::cwbvh_depth(&build_cwbvh(&scene.triangles).nodes);
+    assert!(
+        scene
+            .warnings
+            .iter()
+            .any(|w| w.contains("duplicate triangle")),
+        "{:?}",
+        scene.warnings
+    );
+    // Distinct triangles that share one bounding box (all span the unit square, their
+    // apexes along its top edge) are not duplicates, and still make a deep binary BVH,
+    // which a `traversal-bvh2` build refuses (check_depth) instead of dropping subtrees;
+    // the default CWBVH stays within its stack, or the scene is refused.
+    let stack: Vec<Triangle> = (0..3000)
+        .map(|i| {
+            let apex = Vec3::new(i as f32 / 3000.0, 1.0, 0.0);
+            Triangle::new(Vec3::ZERO, Vec3::X, apex, 0)
+        })
+        .collect();
+    let d2 = runner::accel::bvh2_depth(&build_bvh2(&stack).nodes);
+    let dc = runner::accel::cwbvh_depth(&build_cwbvh(&stack).nodes);
     eprintln!(
         "{} triangles: BVH2 depth {d2}, CWBVH depth {dc}",
-        scene.triangles.len()
+        stack.len()
     );
-    assert!(dc <= kernels::bvh::CWBVH_STACK, "cwbvh depth {dc}");
     assert!(
         d2 > kernels::bvh::BVH2_STACK,
         "this input is the deep-BVH2 case (depth {d2})"
     );
+    match runner::scene::Scene::new(stack, vec![Material::new(Vec3::ONE, Vec3::ZERO)]) {
+        Ok(scene) => assert!(runner::accel::cwbvh_depth(&scene.nodes) <= kernels::bvh::CWBVH_STACK),
+        Err(e) => assert!(e.to_string().contains("pathological"), "{e}"),
+    }
 }
 
 #[test]

@@ -1,23 +1,12 @@
 //! Environment light: an equirectangular HDR map that escaping rays see, and the built-in
 //! sky that lights scenes without emitters.
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+
+use common::{runner, tmp_dir as dir};
+
+use std::path::Path;
 
 use glam::Vec3;
-
-fn runner(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_runner"))
-        .args(args)
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .output()
-        .expect("runner binary runs")
-}
-
-fn dir(name: &str) -> PathBuf {
-    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 /// An equirectangular .hdr of 32x16 texels: `top` above the horizon, `bottom` below.
 fn write_env(path: &Path, top: f32, bottom: f32) {

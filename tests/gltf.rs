@@ -1,5 +1,9 @@
 //! glTF 2.0 scenes: the same scene as OBJ + MTL and as glTF gives the same image; node
 //! transforms, cameras and embedded textures are read.
+mod common;
+
+use common::tmp_dir as dir;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -7,12 +11,6 @@ use glam::Vec3;
 
 /// One mesh of a test scene: its name, material index, positions and triangle indices.
 type Object = (String, usize, Vec<[f32; 3]>, Vec<u32>);
-
-fn dir(name: &str) -> PathBuf {
-    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 fn base64(bytes: &[u8]) -> String {
     const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";

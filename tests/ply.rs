@@ -1,13 +1,10 @@
 //! PLY meshes, ASCII and binary: the same geometry as an OBJ renders the same image, vertex
 //! normals are read, and broken files are one error line.
-use std::path::PathBuf;
-use std::process::Command;
+mod common;
 
-fn dir(name: &str) -> PathBuf {
-    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+use common::tmp_dir as dir;
+
+use std::process::Command;
 
 /// The Cornell box's vertices and polygons (its materials left out).
 fn cornell_geometry() -> (Vec<[f32; 3]>, Vec<Vec<u32>>) {

@@ -1,24 +1,13 @@
 //! Real scene files' surface attributes through the real binary: vertex normals (`vn`)
 //! shade by the interpolated normal, texture coordinates (`vt`) and `map_Kd` give the
 //! albedo, and what cannot be loaded is said, not silently dropped.
+mod common;
+
+use common::{runner, tmp_dir as dir};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use glam::Vec3;
-
-fn runner(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_runner"))
-        .args(args)
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .output()
-        .expect("runner binary runs")
-}
-
-fn dir(name: &str) -> PathBuf {
-    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 /// Render `scene` on the CPU backend looking straight down at the floor quad, return the
 /// image and stderr.

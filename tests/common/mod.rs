@@ -6,6 +6,22 @@ use kernels::types::Material;
 #[allow(unused_imports)]
 pub use runner::generate::{closed_box, icosphere, quad};
 
+/// Run the real `runner` binary with `args` (no display needed: XDG_RUNTIME_DIR is set).
+pub fn runner(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_runner"))
+        .args(args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("runner binary runs")
+}
+
+/// A folder of the test's own under cargo's temporary directory.
+pub fn tmp_dir(name: &str) -> std::path::PathBuf {
+    let d = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
 pub fn grey(albedo: f32) -> Material {
     Material::new(Vec3::splat(albedo), Vec3::ZERO)
 }
