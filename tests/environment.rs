@@ -319,3 +319,59 @@ fn importance_sampling_the_map_beats_bsdf_sampling_under_a_sun() {
         "importance sampling must win by 10x"
     );
 }
+
+#[test]
+fn a_sun_lights_a_floor_by_its_solid_angle() {
+    // A floor of albedo 0.5 under a sun of radiance L and angular radius r at 60°
+    // elevation, nothing else: L_out = 0.5/π · L · 2π(1 − cos r) · sin 60°. NEE and MIS
+    // sample the sun's cone (nearly noise-free); pt and ris can only hit it by BSDF
+    // sampling, so their sun is made wide (20°) and they get more samples.
+    let d = dir("env_sun_disk");
+    let quad = d.join("quad.obj");
+    write_quad(&quad, false);
+    let elevation = 60f32.to_radians();
+    let sun = format!("{},{},0", elevation.cos(), elevation.sin());
+    for (integrator, angle, spp, tolerance) in [
+        ("nee", "2", "16", 0.01),
+        ("mis", "2", "16", 0.01),
+        ("pt", "20", "1024", 0.05),
+        ("ris", "20", "1024", 0.05),
+    ] {
+        let (image, _) = render(
+            &quad,
+            &d.join("sun.exr"),
+            &[
+                "--sun",
+                &sun,
+                "--sun-radiance",
+                "100,100,100",
+                "--sun-angle",
+                angle,
+                "--eye",
+                "0,3,0.01",
+                "--target",
+                "0,0,0",
+                "--fov",
+                "20",
+                "--integrator",
+                integrator,
+                "--max-depth",
+                "2",
+                "--spp",
+                spp,
+            ],
+        );
+        let r = (0.5 * angle.parse::<f32>().unwrap()).to_radians();
+        let expected = 0.5 / std::f32::consts::PI
+            * 100.0
+            * 2.0
+            * std::f32::consts::PI
+            * (1.0 - r.cos())
+            * elevation.sin();
+        let got = centre_mean(&image).x;
+        assert!(
+            (got / expected - 1.0).abs() < tolerance,
+            "{integrator}: {got} vs {expected}"
+        );
+    }
+}

@@ -72,7 +72,8 @@ pub struct KernelOptions {
     #[arg(long, default_value_t = 8, value_name = "N")]
     pub max_depth: u32,
     /// Radiance of rays that leave the scene, the same in every direction [default: black;
-    /// for scenes without emitters, the built-in sky: a soft white dome over a grey floor]
+    /// for scenes without emitters or --sun, the built-in sky: a soft white dome over a grey
+    /// floor]
     #[arg(long, value_parser = parse_vec3, value_name = "R,G,B")]
     pub sky: Option<Vec3>,
     /// Environment map that rays leaving the scene see: an equirectangular (latitude-
@@ -90,6 +91,16 @@ pub struct KernelOptions {
     /// Multiply the environment map (or the built-in sky) by this
     #[arg(long, default_value_t = 1.0, value_name = "S")]
     pub env_scale: f32,
+    /// A sun: the direction towards it (world coordinates); a distant disk light that
+    /// next-event estimation samples by its cone
+    #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub sun: Option<Vec3>,
+    /// The sun disk's radiance
+    #[arg(long, value_parser = parse_vec3, default_value = "10000,9000,8000", value_name = "R,G,B")]
+    pub sun_radiance: Vec3,
+    /// The sun's angular diameter in degrees (the real sun: 0.53)
+    #[arg(long, default_value_t = 0.53, value_name = "DEG")]
+    pub sun_angle: f32,
     /// How NEE and MIS pick a light triangle
     #[arg(long, value_enum, default_value_t = LightSampling::Power)]
     pub light_sampling: LightSampling,
@@ -175,7 +186,7 @@ pub fn check_image_size(width: u32, height: u32) -> Result<()> {
 
 /// Validate the options and build the kernels' parameters for the first frame.
 /// The environment map (`--env`, or the built-in sky for a scene that has no emitters and
-/// no `--sky`) is added to the scene's textures here.
+/// none of `--sky`, `--env`, `--sun`) is added to the scene's textures here.
 pub fn frame_params(
     args: &SceneOptions,
     kernel: &KernelOptions,
@@ -210,8 +221,27 @@ pub fn frame_params(
     if !kernel.env_rotate.is_finite() {
         bail!("--env-rotate must be a finite number of degrees");
     }
+    if let Some(sun) = kernel.sun {
+        if sun.length() == 0.0 {
+            bail!("--sun must be a direction, not zero");
+        }
+        if kernel.sun_radiance.min_element() < 0.0
+            || kernel.sun_radiance.max_element() > crate::scene::MAX_RADIANCE
+        {
+            bail!(
+                "--sun-radiance must be between 0 and {:e} per channel",
+                crate::scene::MAX_RADIANCE
+            );
+        }
+        if !(kernel.sun_angle > 0.0 && kernel.sun_angle < 90.0) {
+            bail!(
+                "--sun-angle must be in (0, 90) degrees, got {}",
+                kernel.sun_angle
+            );
+        }
+    }
     let needs_lights = kernel.integrator != Integrator::Ao;
-    let unlit = needs_lights && scene.lights.is_empty();
+    let unlit = needs_lights && scene.lights.is_empty() && kernel.sun.is_none();
     let (sky, env_texture) = match (&kernel.env, kernel.sky) {
         (Some(_), Some(_)) => bail!("give --sky or --env, not both"),
         (Some(path), None) => (
@@ -272,6 +302,16 @@ pub fn frame_params(
         bail!("--ao-distance must be a positive number, got {ao_distance}");
     }
     let camera = crate::camera::camera(args, scene)?;
+    // NEE's light sources share its samples equally: emissive triangles, the map, the sun
+    // (a choice by power would be better; the map's and the sun's power depend on the
+    // scene's size).
+    let sources = [
+        !scene.lights.is_empty(),
+        env_texture != kernels::types::INVALID,
+        kernel.sun.is_some(),
+    ];
+    let count = sources.iter().filter(|s| **s).count().max(1) as f32;
+    let light_share = |present: bool| if present { 1.0 / count } else { 0.0 };
     Ok(FrameParams {
         camera,
         prev_camera: camera,
@@ -283,14 +323,14 @@ pub fn frame_params(
         sky: sky.to_array(),
         env_texture,
         env_rotation: kernel.env_rotate.to_radians(),
-        // Half of NEE's samples go to the map when there are emitters too (a choice by
-        // power would be better; the map's power depends on the scene's size).
-        env_light_probability: if env_texture == kernels::types::INVALID {
-            0.0
-        } else if scene.lights.is_empty() {
-            1.0
+        env_light_probability: light_share(env_texture != kernels::types::INVALID),
+        sun_light_probability: light_share(kernel.sun.is_some()),
+        sun_cos_max: (0.5 * kernel.sun_angle).to_radians().cos(),
+        sun_direction: kernel.sun.unwrap_or(Vec3::Y).normalize().to_array(),
+        sun_radiance: if kernel.sun.is_some() {
+            kernel.sun_radiance.to_array()
         } else {
-            0.5
+            [0.0; 3]
         },
         env_up: match args.up_axis {
             UpAxis::Y => kernels::types::ENV_UP_Y,

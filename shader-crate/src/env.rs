@@ -117,14 +117,76 @@ pub fn env_pdf(scene: &SceneBuffers, params: &FrameParams, dir: Vec3) -> f32 {
     p_row * p_col * (w * h) as f32 / (2.0 * PI * PI * sin_t)
 }
 
-/// Radiance arriving along `-dir` from outside the scene (a ray leaving in direction `dir`).
+/// Radiance arriving along `-dir` from outside the scene (a ray leaving in direction `dir`):
+/// the sky or environment map, plus the sun's disk.
 pub fn escaped_radiance(scene: &SceneBuffers, params: &FrameParams, dir: Vec3) -> Vec3 {
     let sky = vec3(params.sky);
+    let sun = if vec3(params.sun_direction).dot(dir) >= params.sun_cos_max {
+        vec3(params.sun_radiance)
+    } else {
+        Vec3::ZERO
+    };
     if params.env_texture == INVALID {
-        return sky;
+        return sky + sun;
     }
     let uv = equirect_uv(dir, params.env_up == ENV_UP_Z, params.env_rotation);
-    sky * sample_bilinear(scene.textures, scene.texels, params.env_texture, uv).truncate()
+    sky * sample_bilinear(scene.textures, scene.texels, params.env_texture, uv).truncate() + sun
+}
+
+/// Solid angle of the sun's disk.
+fn sun_solid_angle(params: &FrameParams) -> f32 {
+    2.0 * PI * (1.0 - params.sun_cos_max)
+}
+
+/// A direction uniform in the sun's cone, with its solid-angle density.
+pub fn sample_sun(params: &FrameParams, u1: f32, u2: f32) -> (Vec3, f32) {
+    let cos_t = 1.0 - u1 * (1.0 - params.sun_cos_max);
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let phi = 2.0 * PI * u2;
+    let local = Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t);
+    let dir = crate::sampling::local_to_world(local, vec3(params.sun_direction));
+    (dir, 1.0 / sun_solid_angle(params))
+}
+
+/// The density with which `sample_sun` draws `dir`.
+pub fn sun_pdf(params: &FrameParams, dir: Vec3) -> f32 {
+    if vec3(params.sun_direction).dot(dir) >= params.sun_cos_max {
+        1.0 / sun_solid_angle(params)
+    } else {
+        0.0
+    }
+}
+
+/// Everything beyond the scene as one light for next-event estimation: the map (chosen
+/// with `env_light_probability`) and the sun (`sun_light_probability`). Draws a direction
+/// from one of the two by `u_choice` (uniform below their sum) and returns it with the
+/// mixture's density, which MIS weighs and the estimator divides by (a direction the other
+/// one could have drawn counts that way too).
+pub fn sample_infinite(
+    scene: &SceneBuffers,
+    params: &FrameParams,
+    u_choice: f32,
+    u1: f32,
+    u2: f32,
+) -> (Vec3, f32) {
+    let dir = if u_choice < params.env_light_probability {
+        sample_env(scene, params, u1, u2).0
+    } else {
+        sample_sun(params, u1, u2).0
+    };
+    (dir, infinite_pdf(scene, params, dir))
+}
+
+/// The mixture density of `sample_infinite` (light selection included).
+pub fn infinite_pdf(scene: &SceneBuffers, params: &FrameParams, dir: Vec3) -> f32 {
+    let mut pdf = 0.0;
+    if params.env_light_probability > 0.0 {
+        pdf += params.env_light_probability * env_pdf(scene, params, dir);
+    }
+    if params.sun_light_probability > 0.0 {
+        pdf += params.sun_light_probability * sun_pdf(params, dir);
+    }
+    pdf
 }
 
 #[cfg(test)]

@@ -274,7 +274,18 @@ pub struct FrameParams {
     /// Probability that next-event estimation samples the environment map (by its
     /// importance distribution) rather than an emissive triangle; 0 without a map.
     pub env_light_probability: f32,
-    pub _pad: [u32; 3],
+    /// Probability that next-event estimation samples the sun; 0 without one.
+    pub sun_light_probability: f32,
+    /// Cosine of the sun's angular radius (its disk: directions within that of
+    /// `sun_direction`).
+    pub sun_cos_max: f32,
+    pub _pad: u32,
+    /// Unit direction towards the sun's centre.
+    pub sun_direction: [f32; 3],
+    pub _pad_sun: u32,
+    /// Radiance of the sun's disk (zero: no sun).
+    pub sun_radiance: [f32; 3],
+    pub _pad_radiance: u32,
 }
 
 #[cfg(not(target_arch = "spirv"))]
@@ -321,7 +332,7 @@ const _: () = {
     assert!(core::mem::size_of::<Triangle>() == 48);
     assert!(core::mem::size_of::<Material>() == 64);
     assert!(core::mem::size_of::<Camera>() == 64);
-    assert!(core::mem::size_of::<FrameParams>() == 240);
+    assert!(core::mem::size_of::<FrameParams>() == 272);
     assert!(core::mem::size_of::<GBufferTexel>() == 48);
     assert!(core::mem::size_of::<Light>() == 16);
     assert!(core::mem::size_of::<TriangleShading>() == 64);

@@ -11,7 +11,7 @@
 //! constant radiance.
 use crate::bsdf::{Bsdf, BSDF_DIFFUSE};
 use crate::bvh::{surface_hit, SceneBuffers, SurfaceHit};
-use crate::env::{env_pdf, escaped_radiance, sample_env};
+use crate::env::{escaped_radiance, infinite_pdf, sample_infinite};
 use crate::glam::Vec3;
 use crate::integrators::ris::{self, ShadingPoint};
 use crate::integrators::PixelResult;
@@ -43,8 +43,8 @@ pub struct PathState {
     pub depth: u32,
     pub bsdf_pdf: f32,
     pub delta: bool,
-    /// The vertex `ray` left sampled the environment map by NEE (so the map's radiance that
-    /// the ray finds is weighted against that, by MIS or not at all).
+    /// The vertex `ray` left sampled the environment map and sun by NEE (so what of them the
+    /// ray finds is weighted against that, by MIS or not at all).
     pub env_sampled: bool,
 }
 
@@ -117,8 +117,8 @@ fn bsdf_toward(s: &SurfaceHit, bsdf: &Bsdf, wo: Vec3, dir: Vec3) -> (Vec3, f32) 
 }
 
 /// Direct light at surface `s` (viewed from `wo`) by next-event estimation: one light
-/// sample — a point on an emissive triangle, or with probability
-/// `params.env_light_probability` a direction of the environment map — and one shadow ray.
+/// sample — a point on an emissive triangle, or (with the probabilities in `params`) a
+/// direction of the environment map or of the sun — and one shadow ray.
 /// With `mis`, weighted against BSDF sampling by the power heuristic.
 #[allow(clippy::too_many_arguments)] // the estimator's inputs, each used once
 pub fn direct_nee(
@@ -131,12 +131,17 @@ pub fn direct_nee(
     rng: &mut Rng,
     rays: &mut u32,
 ) -> Vec3 {
-    let p_env = params.env_light_probability;
-    // A number for the choice only when there is one to make: scenes without a map keep
-    // their random streams.
-    if p_env > 0.0 && (p_env >= 1.0 || rng.next_f32() < p_env) {
-        let (dir, pdf) = sample_env(scene, params, rng.next_f32(), rng.next_f32());
-        let light_pdf = pdf * p_env;
+    // The map and the sun are one light here (their mixture); a number for the choice only
+    // when there is one to make: scenes without them keep their random streams.
+    let p_infinite = params.env_light_probability + params.sun_light_probability;
+    let u_choice = if p_infinite > 0.0 {
+        rng.next_f32()
+    } else {
+        1.0
+    };
+    if u_choice < p_infinite {
+        let (dir, light_pdf) =
+            sample_infinite(scene, params, u_choice, rng.next_f32(), rng.next_f32());
         if light_pdf <= 0.0 || !s.leaves(dir) {
             return Vec3::ZERO;
         }
@@ -171,7 +176,7 @@ pub fn direct_nee(
     if !scene.visible(s.p, s.n, ls.p, ls.n) {
         return Vec3::ZERO;
     }
-    let pdf_area = ls.pdf_area * (1.0 - p_env);
+    let pdf_area = ls.pdf_area * (1.0 - p_infinite);
     let mut weight = 1.0;
     if mis {
         let light_pdf = pdf_area * dist2 / cos_light;
@@ -194,8 +199,8 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
 ) -> Vec3 {
     let mut radiance = Vec3::ZERO;
     let mut st = state;
-    let p_env = params.env_light_probability;
-    let has_lights = !scene.lights.is_empty() || p_env > 0.0;
+    let p_infinite = params.env_light_probability + params.sun_light_probability;
+    let has_lights = !scene.lights.is_empty() || p_infinite > 0.0;
     while st.depth <= params.max_depth {
         let hit = scene.closest_hit(&st.ray, f32::INFINITY);
         *rays += 1;
@@ -203,7 +208,7 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
             let weight = if st.depth == 1 || strategy == BSDF || st.delta || !st.env_sampled {
                 1.0
             } else if strategy == MIS {
-                power_heuristic(st.bsdf_pdf, p_env * env_pdf(scene, params, st.ray.dir))
+                power_heuristic(st.bsdf_pdf, infinite_pdf(scene, params, st.ray.dir))
             } else {
                 0.0 // NEE sampled the map there already
             };
@@ -220,7 +225,7 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
             } else if strategy == MIS {
                 let cos_light = -s.n.dot(st.ray.dir);
                 let light_pdf = light_pdf_area(scene, params.light_sampling, hit.prim)
-                    * (1.0 - p_env)
+                    * (1.0 - p_infinite)
                     * hit.t
                     * hit.t
                     / cos_light.max(1e-12);
@@ -244,7 +249,7 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
         let sample_lights = strategy != BSDF && has_lights && !bsdf.is_delta();
         // RIS's first vertex resamples emissive triangles only; NEE anywhere else.
         let ris_here = strategy == RIS && st.depth == 1;
-        st.env_sampled = sample_lights && !ris_here && p_env > 0.0;
+        st.env_sampled = sample_lights && !ris_here && p_infinite > 0.0;
         if sample_lights {
             let direct = if ris_here {
                 ris::direct_ris::<ALL_DIFFUSE>(
