@@ -126,7 +126,8 @@ impl Backend for CpuBackend {
 
     fn pass(&mut self, integrator: Integrator, params: &FrameParams) -> Result<f64> {
         let start = Instant::now();
-        let Kernel::Image { pixel, .. } = integrator.kernel(self.scene.all_diffuse()) else {
+        let plain = crate::integrator::plain_scene(self.scene.all_diffuse(), params);
+        let Kernel::Image { pixel, .. } = integrator.kernel(plain) else {
             self.restir_frame(params);
             return Ok(start.elapsed().as_secs_f64() * 1e3);
         };

@@ -94,15 +94,23 @@ impl Integrator {
         self.table().0
     }
 
-    /// What runs this integrator on a scene (`Scene::all_diffuse` picks the variant).
-    pub fn kernel(self, all_diffuse: bool) -> Kernel {
-        self.table().1[all_diffuse as usize]
+    /// What runs this integrator: the variant for plain scenes (`plain_scene`) or the
+    /// general one.
+    pub fn kernel(self, plain: bool) -> Kernel {
+        self.table().1[plain as usize]
     }
 
     /// Both variants: for any scene, and for all-Lambertian scenes.
     pub fn kernels(self) -> [Kernel; 2] {
         self.table().1
     }
+}
+
+/// Whether a pass may run the kernels for plain scenes: every material Lambertian and
+/// untextured (`Scene::all_diffuse`), and no environment map or sun in `params` (the sky a
+/// constant at most).
+pub fn plain_scene(all_diffuse: bool, params: &FrameParams) -> bool {
+    all_diffuse && params.env_texture == kernels::types::INVALID && params.sun_radiance == [0.0; 3]
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]

@@ -175,11 +175,12 @@ impl Scene {
         (lo, hi)
     }
 
-    /// Whether every material is Lambertian (the kernels have a faster variant for that).
+    /// Whether every material is Lambertian and untextured (the kernels have a faster
+    /// variant for that).
     pub fn all_diffuse(&self) -> bool {
-        self.materials
-            .iter()
-            .all(|m| m.kind == kernels::bsdf::BSDF_DIFFUSE)
+        self.materials.iter().all(|m| {
+            m.kind == kernels::bsdf::BSDF_DIFFUSE && m.albedo_texture == kernels::types::INVALID
+        })
     }
 
     /// Length of the bounding-box diagonal: the scene's natural length scale.

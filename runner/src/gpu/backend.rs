@@ -340,7 +340,7 @@ impl GpuBackend {
         if self.in_flight.is_some() {
             bail!("internal: a pass was submitted before the previous one finished");
         }
-        let kernel = integrator.kernel(self.all_diffuse);
+        let kernel = integrator.kernel(crate::integrator::plain_scene(self.all_diffuse, params));
         self.ctx.ensure_pipelines(kernel)?;
         let Kernel::Image { entry_point, .. } = kernel else {
             return self.submit_restir_frame(params);
