@@ -19,8 +19,9 @@ use crate::viewer::ViewArgs;
     about = "GPU ray tracer in Rust: the same no_std kernels run as SPIR-V through wgpu and on the CPU",
     long_about = "GPU ray tracer in Rust. Kernels (ambient occlusion, ...) are no_std Rust compiled \
 to SPIR-V by rust-gpu and run through wgpu (Vulkan); the very same functions run on the CPU \
-backend. Scenes are OBJ + MTL: Kd is the diffuse albedo, Ke the emitted radiance (front side = \
-counter-clockwise winding)."
+backend. Scenes are OBJ + MTL (Kd, Ks, Ns, Ni, illum, Pr/Pm and map_Kd map onto a BSDF family \
+of diffuse, metal, glass and coated surfaces; Ke emits from the counter-clockwise front side), \
+glTF 2.0 or PLY; --sky, --env (an HDR map) and --sun light them from outside."
 )]
 pub struct Cli {
     #[command(subcommand)]
