@@ -8,7 +8,8 @@ use kernels::types::{TextureInfo, TEXTURE_RGBE};
 
 use crate::bail;
 use crate::error::Result;
-use crate::scene::{read_input_file, SurfaceAttributes};
+use crate::scene::SurfaceAttributes;
+use crate::textures::{read_image_file, ImageFileError};
 
 /// Largest environment file read and largest map decoded (a 16k × 8k map is 2^27).
 pub const MAX_ENV_FILE_BYTES: u64 = 2 << 30;
@@ -110,19 +111,10 @@ pub fn add_map(
 /// buffer; its texture index.
 pub fn load(attributes: &mut SurfaceAttributes, path: &Path) -> Result<u32> {
     let name = path.display();
-    let bytes = match read_input_file(path, MAX_ENV_FILE_BYTES) {
-        Ok(b) => b,
-        Err(e) => bail!("cannot read --env '{name}': {e}"),
-    };
-    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
-        .with_guessed_format()
-        .map_err(|e| crate::error::Error(format!("cannot read --env '{name}': {e}")))?;
-    let mut limits = image::Limits::default();
-    limits.max_alloc = Some(MAX_ENV_TEXELS * 16);
-    reader.limits(limits);
-    let image = match reader.decode() {
+    let image = match read_image_file(path, MAX_ENV_FILE_BYTES, MAX_ENV_TEXELS) {
         Ok(i) => i.to_rgb32f(),
-        Err(e) => bail!("cannot decode --env '{name}': {e}"),
+        Err(ImageFileError::Read(e)) => bail!("cannot read --env '{name}': {e}"),
+        Err(ImageFileError::Decode(e)) => bail!("cannot decode --env '{name}': {e}"),
     };
     let (w, h) = image.dimensions();
     if w < 2 || h < 1 || w as u64 * h as u64 > MAX_ENV_TEXELS {

@@ -15,9 +15,7 @@
 use std::path::Path;
 
 use glam::{Mat3, Mat4, Vec2, Vec3};
-use kernels::types::{
-    Material, Triangle, TriangleShading, DEFAULT_IOR, SHADING_NORMALS, SHADING_UVS,
-};
+use kernels::types::{Material, Triangle, DEFAULT_IOR};
 
 use crate::bail;
 use crate::error::{Error, Result};
@@ -245,27 +243,13 @@ pub fn load(path: &Path) -> Result<Scene> {
                 for c in sides {
                     let mut t =
                         Triangle::new(positions[c[0]], positions[c[1]], positions[c[2]], material);
-                    let mut shading = TriangleShading::default();
-                    if let Some(n) = &normals {
-                        for (k, &i) in c.iter().enumerate() {
-                            shading.normals[3 * k..3 * k + 3].copy_from_slice(
-                                &n.get(i).copied().unwrap_or(Vec3::ZERO).to_array(),
-                            );
-                        }
-                        shading.flags |= SHADING_NORMALS;
-                    }
-                    if let Some(uv) = &uvs {
-                        for (k, &i) in c.iter().enumerate() {
-                            shading.uvs[2 * k..2 * k + 2].copy_from_slice(
-                                &uv.get(i).copied().unwrap_or(Vec2::ZERO).to_array(),
-                            );
-                        }
-                        shading.flags |= SHADING_UVS;
-                    }
-                    if shading.flags != 0 {
-                        t.shading = attributes.shading.len() as u32;
-                        attributes.shading.push(shading);
-                    }
+                    let corner_normals = normals
+                        .as_ref()
+                        .map(|n| c.map(|i| n.get(i).copied().unwrap_or(Vec3::ZERO)));
+                    let corner_uvs = uvs
+                        .as_ref()
+                        .map(|uv| c.map(|i| uv.get(i).copied().unwrap_or(Vec2::ZERO)));
+                    attributes.attach(&mut t, corner_normals, corner_uvs);
                     triangles.push(t);
                 }
             }

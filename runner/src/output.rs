@@ -160,7 +160,7 @@ pub fn read_image(path: &Path) -> Result<Image> {
     let rgb = img.to_rgb32f();
     let decode = |x: f32| match format {
         // `image` converts 8-bit PNG to float without undoing the sRGB curve.
-        OutputFormat::Png => srgb_to_linear(x),
+        OutputFormat::Png => kernels::texture::srgb_to_linear(x),
         OutputFormat::Exr => x,
     };
     Ok(Image {
@@ -171,14 +171,6 @@ pub fn read_image(path: &Path) -> Result<Image> {
             .map(|p| Vec3::new(decode(p[0]), decode(p[1]), decode(p[2])))
             .collect(),
     })
-}
-
-pub fn srgb_to_linear(x: f32) -> f32 {
-    if x <= 0.040_45 {
-        x / 12.92
-    } else {
-        ((x + 0.055) / 1.055).powf(2.4)
-    }
 }
 
 /// Error of an image against a reference.

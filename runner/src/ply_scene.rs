@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use glam::Vec3;
-use kernels::types::{Material, Triangle, TriangleShading, SHADING_NORMALS};
+use kernels::types::{Material, Triangle};
 use ply_rs_bw::ply::Property;
 
 use crate::bail;
@@ -129,15 +129,8 @@ pub fn load(path: &Path) -> Result<Scene> {
         for k in 1..list.len().saturating_sub(1) {
             let c = [list[0] as usize, list[k] as usize, list[k + 1] as usize];
             let mut t = Triangle::new(positions[c[0]], positions[c[1]], positions[c[2]], 0);
-            if has_normals {
-                let mut shading = TriangleShading::default();
-                for (j, &i) in c.iter().enumerate() {
-                    shading.normals[3 * j..3 * j + 3].copy_from_slice(&normals[i].to_array());
-                }
-                shading.flags = SHADING_NORMALS;
-                t.shading = attributes.shading.len() as u32;
-                attributes.shading.push(shading);
-            }
+            let corner_normals = has_normals.then(|| c.map(|i| normals[i]));
+            attributes.attach(&mut t, corner_normals, None);
             triangles.push(t);
         }
     }

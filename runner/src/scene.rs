@@ -53,6 +53,34 @@ pub struct SurfaceAttributes {
 }
 
 impl SurfaceAttributes {
+    /// Give `triangle` its corners' normals and/or texture coordinates (all three corners
+    /// each, or none); nothing is stored when it has neither. Every loader goes through here.
+    pub fn attach(
+        &mut self,
+        triangle: &mut Triangle,
+        normals: Option<[Vec3; 3]>,
+        uvs: Option<[glam::Vec2; 3]>,
+    ) {
+        if normals.is_none() && uvs.is_none() {
+            return;
+        }
+        let mut shading = TriangleShading::default();
+        if let Some(n) = normals {
+            for (k, v) in n.iter().enumerate() {
+                shading.normals[3 * k..3 * k + 3].copy_from_slice(&v.to_array());
+            }
+            shading.flags |= kernels::types::SHADING_NORMALS;
+        }
+        if let Some(uv) = uvs {
+            for (k, v) in uv.iter().enumerate() {
+                shading.uvs[2 * k..2 * k + 2].copy_from_slice(&v.to_array());
+            }
+            shading.flags |= kernels::types::SHADING_UVS;
+        }
+        triangle.shading = self.shading.len() as u32;
+        self.shading.push(shading);
+    }
+
     /// Every index the kernels will follow stays inside its buffer.
     fn check(&self, triangles: &[Triangle], materials: &[Material]) -> Result<()> {
         let invalid = kernels::types::INVALID;
@@ -585,34 +613,22 @@ fn parse_obj(
                 vertex(face[2])?,
                 material,
             );
-            let corners = 3 * f..3 * f + 3;
-            let normals: Option<Vec<f32>> = normal_indices.and_then(|ix| {
-                ix[corners.clone()]
-                    .iter()
-                    .map(|&k| mesh.normals.get(3 * k as usize..3 * k as usize + 3))
-                    .collect::<Option<Vec<_>>>()
-                    .map(|v| v.concat())
+            // Each corner's attribute, if the file has it for all three.
+            let normals = normal_indices.and_then(|ix| {
+                let n = |c: usize| {
+                    let k = 3 * ix[c] as usize;
+                    mesh.normals.get(k..k + 3).map(Vec3::from_slice)
+                };
+                Some([n(3 * f)?, n(3 * f + 1)?, n(3 * f + 2)?])
             });
-            let uvs: Option<Vec<f32>> = uv_indices.and_then(|ix| {
-                ix[corners]
-                    .iter()
-                    .map(|&k| mesh.texcoords.get(2 * k as usize..2 * k as usize + 2))
-                    .collect::<Option<Vec<_>>>()
-                    .map(|v| v.concat())
+            let uvs = uv_indices.and_then(|ix| {
+                let uv = |c: usize| {
+                    let k = 2 * ix[c] as usize;
+                    mesh.texcoords.get(k..k + 2).map(glam::Vec2::from_slice)
+                };
+                Some([uv(3 * f)?, uv(3 * f + 1)?, uv(3 * f + 2)?])
             });
-            if normals.is_some() || uvs.is_some() {
-                let mut shading = TriangleShading::default();
-                if let Some(n) = normals {
-                    shading.normals.copy_from_slice(&n);
-                    shading.flags |= kernels::types::SHADING_NORMALS;
-                }
-                if let Some(uv) = uvs {
-                    shading.uvs.copy_from_slice(&uv);
-                    shading.flags |= kernels::types::SHADING_UVS;
-                }
-                triangle.shading = attributes.shading.len() as u32;
-                attributes.shading.push(shading);
-            }
+            attributes.attach(&mut triangle, normals, uvs);
             triangles.push(triangle);
         }
     }

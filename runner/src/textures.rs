@@ -35,17 +35,42 @@ pub fn candidate_paths(dir: &Path, name: &str) -> Vec<PathBuf> {
     paths
 }
 
+/// Why an image file could not be had.
+pub enum ImageFileError {
+    /// Reading it (missing, not a regular file, over the size limit, unknown format).
+    Read(String),
+    /// Decoding it.
+    Decode(String),
+}
+
+/// Read an image file of at most `max_bytes` and decode it, allocating for at most
+/// `max_texels` texels (a hostile header cannot ask for more); texture and environment
+/// files both come in here.
+pub fn read_image_file(
+    path: &Path,
+    max_bytes: u64,
+    max_texels: u64,
+) -> Result<image::DynamicImage, ImageFileError> {
+    let read = |e: &dyn std::fmt::Display| ImageFileError::Read(e.to_string());
+    let bytes = read_input_file(path, max_bytes).map_err(|e| read(&e))?;
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| read(&e))?;
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(max_texels * 16);
+    reader.limits(limits);
+    reader
+        .decode()
+        .map_err(|e| ImageFileError::Decode(e.to_string()))
+}
+
 /// Read and decode one texture file to RGBA8 (sRGB colour, as 8-bit textures are stored),
 /// or say why not.
 pub fn decode(path: &Path) -> Result<image::RgbaImage, String> {
-    let bytes = read_input_file(path, MAX_TEXTURE_FILE_BYTES).map_err(|e| e.to_string())?;
-    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
-        .with_guessed_format()
-        .map_err(|e| e.to_string())?;
-    let mut limits = image::Limits::default();
-    limits.max_alloc = Some(MAX_TEXTURE_TEXELS * 16);
-    reader.limits(limits);
-    let image = reader.decode().map_err(|e| e.to_string())?;
+    let image =
+        read_image_file(path, MAX_TEXTURE_FILE_BYTES, MAX_TEXTURE_TEXELS).map_err(|e| match e {
+            ImageFileError::Read(e) | ImageFileError::Decode(e) => e,
+        })?;
     if image.width() as u64 * image.height() as u64 > MAX_TEXTURE_TEXELS {
         return Err(format!(
             "{}x{} texels, over the limit of {MAX_TEXTURE_TEXELS}",
