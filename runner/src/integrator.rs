@@ -115,9 +115,10 @@ pub fn plain_scene(all_diffuse: bool, params: &FrameParams) -> bool {
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 pub enum RestirBias {
-    /// 1/Z: converges to the right image
+    /// MIS weights with visibility at the other pixels: converges to the right image
     Unbiased,
-    /// 1/M: no extra shadow rays, a little darker where visibility varies
+    /// MIS weights without visibility: no extra shadow rays, a little darker where
+    /// visibility varies
     Biased,
 }
 

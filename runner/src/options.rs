@@ -117,10 +117,10 @@ pub struct KernelOptions {
     /// in proportion to the image's smaller side, at least 3]
     #[arg(long, value_name = "PX")]
     pub spatial_radius: Option<f32>,
-    /// ReSTIR: how reused samples are weighted: unbiased (balance heuristic over the
-    /// reservoirs that could have produced the sample, a shadow ray each) or biased (1/M:
-    /// cheaper, ~1% darker on many-lights) [default: biased; unbiased when built with the
-    /// `restir-unbiased` feature]
+    /// ReSTIR: how reused samples are weighted: unbiased (MIS weights with visibility at
+    /// the other pixels, a shadow ray each) or biased (the same weights without those rays:
+    /// ~40% cheaper reuse, a little dark at shadow edges) [default: unbiased; biased when
+    /// built without the `restir-unbiased` feature]
     #[arg(long, value_enum)]
     pub restir_bias: Option<RestirBias>,
     /// ReSTIR: spatial reuse passes per frame (0 = none, at most 8)

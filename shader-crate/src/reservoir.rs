@@ -73,15 +73,22 @@ impl Reservoir {
         false
     }
 
-    /// Merge another reservoir into this one as a single candidate standing for its M
-    /// candidates: weight p̂_here(y) · W · M, where `target_pdf_here` is the other's sample
-    /// re-evaluated at this reservoir's owner.
-    pub fn merge(&mut self, other: &Reservoir, target_pdf_here: f32, u: f32) -> bool {
+    /// Generalised RIS (Lin et al. 2022): take another reservoir's sample y as a candidate
+    /// of weight m(y) · p̂_here(y) · W, where `mis_weight` m is that reservoir's resampling
+    /// MIS weight (all the weights of one merge sum to one wherever the target is non-zero:
+    /// finalize with 1). Its M still counts towards this reservoir's confidence.
+    pub fn resample(
+        &mut self,
+        other: &Reservoir,
+        target_pdf_here: f32,
+        mis_weight: f32,
+        u: f32,
+    ) -> bool {
         self.m += other.m;
         if !other.has_sample() {
             return false;
         }
-        let weight = target_pdf_here * other.w * other.m;
+        let weight = target_pdf_here * other.w * mis_weight;
         self.add(
             other.triangle,
             other.b1,
@@ -92,9 +99,8 @@ impl Reservoir {
         )
     }
 
-    /// W = w_sum / (M · p̂(y)) — the biased-by-default 1/M normalisation. `normaliser`
-    /// replaces M where the caller counts only the candidates that could have produced y
-    /// (ReSTIR's unbiased 1/Z).
+    /// W = w_sum / (normaliser · p̂(y)): the normaliser is M for candidates weighted 1/M
+    /// (`update`) and 1 for MIS-weighted ones (`resample`).
     pub fn finalize(&mut self, normaliser: f32) {
         self.w = if self.has_sample() && self.target_pdf > 0.0 && normaliser > 0.0 {
             self.w_sum / (normaliser * self.target_pdf)

@@ -307,8 +307,9 @@ pub const RESTIR_TEMPORAL: u32 = 1;
 pub const RESTIR_VISIBILITY_REUSE: u32 = 2;
 /// ReSTIR: the previous frame's buffers hold valid history (false on the first frame).
 pub const RESTIR_HISTORY_VALID: u32 = 4;
-/// ReSTIR: normalise W by 1/Z (unbiased) instead of 1/M (biased). The runner sets it when
-/// built with the `restir-unbiased` feature; tests set it directly to check both.
+/// ReSTIR: reuse's MIS weights include visibility at the other pixels (unbiased) instead
+/// of skipping those shadow rays (biased). The runner sets it by `--restir-bias` (default:
+/// the `restir-unbiased` feature); tests set it directly to check both.
 pub const RESTIR_UNBIASED: u32 = 8;
 
 /// What the primary-hit pass leaves for the later ReSTIR passes. `prim == INVALID` marks a

@@ -15,11 +15,13 @@
 //! visibility is reused along with the sample, and the shade pass needs no shadow ray.
 //! The temporal result is the next frame's history (see runner/src/restir.rs).
 //!
-//! W is normalised by 1/M (biased: reservoirs that could not have produced the sample
-//! still count) or, with `RESTIR_UNBIASED`, by the balance heuristic over exactly the
-//! reservoirs that could have: those whose owner has a non-zero target for the sample and
-//! sees it (one shadow ray per such reservoir; Bitterli et al. 2020, Alg. 6 with the
-//! ray-traced test). Both are chosen at run time.
+//! Reuse is generalised RIS (Lin et al. 2022): each merged reservoir's sample is weighed
+//! by an MIS weight saying how likely each reservoir was to produce it (confidence M times
+//! its target): the balance heuristic between this frame and the history in the temporal
+//! pass, defensive pairwise MIS between this pixel and each neighbour in the spatial pass.
+//! The two modes, chosen at run time (`RESTIR_UNBIASED`), differ only in those weights'
+//! targets at other pixels: with visibility there (a shadow ray each: unbiased) or without
+//! (biased: slightly dark where neighbours do not see what this pixel sees).
 use crate::bsdf::BSDF_DIFFUSE;
 use crate::bvh::{surface_hit, SceneBuffers, SurfaceHit};
 use crate::camera::jittered_ray;
@@ -200,7 +202,7 @@ pub fn project(camera: &Camera, width: u32, height: u32, p: Vec3) -> Option<(u32
 /// included: every merge weighs samples by its owner's target and (with visibility reuse)
 /// every reservoir keeps only samples its owner sees, so this is zero exactly where that
 /// reservoir could not have produced the sample. `seen` skips the shadow ray when the
-/// sample is known to be visible there (it came from that reservoir).
+/// sample is known (or, biased, assumed) to be visible there.
 #[allow(clippy::too_many_arguments)] // the texel, its eye and the sample, each needed
 fn target_with_visibility(
     scene: &SceneBuffers,
@@ -223,15 +225,26 @@ fn target_with_visibility(
     }
 }
 
-/// The unbiased normaliser of a merged reservoir, in place of M in W = w_sum / (M p̂(y)):
-/// Σᵢ Mᵢ p̂ᵢ(y) / p̂_c(y), where p̂ᵢ are the targets (visibility included) of the reservoirs
-/// merged and c the one y came from. This is Bitterli et al.'s MIS form of 1/Z (2020,
-/// §4.3) with the balance heuristic: 1/Z weighs every reservoir that could have produced
-/// y alike, so a neighbour that would almost never pick y (a light right above this point,
-/// far from it) got as much say as this pixel, and rare picks became 100× fireflies.
-fn balance_normaliser(weighted_targets: f32, source_target: f32) -> f32 {
-    if source_target > 0.0 {
-        weighted_targets / source_target
+/// The target of another pixel's reservoir (texel `g`, seen from `eye`) for the sample of
+/// `r`, as the MIS weights of a merge need it: with that pixel's visibility (one shadow ray)
+/// when unbiased; the biased mode skips the ray and so credits that pixel with samples it
+/// may not see (its one source of bias, slightly dark at shadow edges).
+fn target_elsewhere(
+    scene: &SceneBuffers,
+    params: &FrameParams,
+    g: &GBufferTexel,
+    eye: Vec3,
+    r: &Reservoir,
+    rays: &mut u32,
+) -> f32 {
+    target_with_visibility(scene, params, g, eye, r, !unbiased(params), rays)
+}
+
+/// The share a/(a + b) of the first of two confidence-weighted targets a = Mᵢ p̂ᵢ(y) and
+/// b = Mⱼ p̂ⱼ(y): the balance heuristic between two reservoirs (0 when neither has y).
+fn balance(a: f32, b: f32) -> f32 {
+    if a > 0.0 {
+        a / (a + b)
     } else {
         0.0
     }
@@ -276,21 +289,21 @@ pub fn temporal_pass(
     let mut rng = pass_rng(params, pixel as u32, STREAM_TEMPORAL);
     let eye = vec3(params.camera.eye);
     let target_prev = target_with_visibility(scene, params, &g, eye, &prev, false, rays);
-    let mut out = Reservoir::empty();
-    out.merge(&cur, cur.target_pdf, rng.next_f32());
-    let from_prev = out.merge(&prev, target_prev, rng.next_f32());
-    let mut z = out.m;
-    if unbiased(params) && out.has_sample() {
-        // This pixel sees the sample (it was chosen with visibility in the target).
-        let own = out.target_pdf;
+    // Generalised RIS with the balance heuristic over the two reservoirs: each sample
+    // weighed by how likely each reservoir was to produce it (Mᵢ p̂ᵢ, targets with
+    // visibility: a reservoir never holds a sample its owner does not see).
+    let cur_there = if cur.has_sample() && cur.w > 0.0 {
         let prev_eye = vec3(params.prev_camera.eye);
-        let there = target_with_visibility(scene, params, &gp, prev_eye, &out, from_prev, rays);
-        z = balance_normaliser(
-            cur.m * own + prev.m * there,
-            if from_prev { there } else { own },
-        );
-    }
-    out.finalize(z);
+        target_elsewhere(scene, params, &gp, prev_eye, &cur, rays)
+    } else {
+        0.0
+    };
+    let m_cur = balance(cur.m * cur.target_pdf, prev.m * cur_there);
+    let m_prev = balance(prev.m * prev.target_pdf, cur.m * target_prev);
+    let mut out = Reservoir::empty();
+    out.resample(&cur, cur.target_pdf, m_cur, rng.next_f32());
+    out.resample(&prev, target_prev, m_prev, rng.next_f32());
+    out.finalize(1.0);
     out
 }
 
@@ -315,16 +328,13 @@ pub fn spatial_pass(
     let eye = vec3(params.camera.eye);
     let sp = shading_point(scene, &g, eye);
     let mut rng = pass_rng(params, pixel, STREAM_SPATIAL + params.spatial_pass);
-    let mut out = Reservoir::empty();
-    out.merge(&own, own.target_pdf, rng.next_f32());
+    // The neighbours: pixels in the disk about this pixel's centre that see a similar
+    // surface (chosen by geometry alone, never by their samples).
     let mut used = [0u32; MAX_SPATIAL_NEIGHBOURS as usize];
     let mut n_used = 0usize;
-    // Which neighbour (index into `used`) the kept sample came from; none: this pixel's.
-    let mut source = INVALID;
     let k = params.spatial_neighbours.min(MAX_SPATIAL_NEIGHBOURS);
     let mut i = 0;
     while i < k {
-        // Uniform in the disk of the given radius about the pixel's centre.
         let r = params.spatial_radius * sqrt(rng.next_f32());
         let (s, c) = sin_cos(2.0 * PI * rng.next_f32());
         let nx = x as f32 + 0.5 + r * c;
@@ -337,43 +347,82 @@ pub fn spatial_pass(
         if q == pixel || !similar(&g, &gbuffer[q as usize]) {
             continue;
         }
-        let neighbour = input[q as usize];
-        if out.merge(
-            &neighbour,
-            target_pdf_of::<false>(scene, &neighbour, &sp),
-            rng.next_f32(),
-        ) {
-            source = n_used as u32;
-        }
         used[n_used] = q;
         n_used += 1;
     }
-    let mut z = out.m;
-    if unbiased(params) && out.has_sample() {
-        // This pixel's own target: it sees the sample, or the test below drops it anyway.
-        let own_target = out.target_pdf;
-        let mut weighted = own.m * own_target;
-        let mut source_target = own_target;
-        let mut j = 0;
-        while j < n_used {
-            let q = used[j] as usize;
-            let from_here = j as u32 == source;
-            let t = target_with_visibility(scene, params, &gbuffer[q], eye, &out, from_here, rays);
-            weighted += input[q].m * t;
-            if from_here {
-                source_target = t;
-            }
-            j += 1;
-        }
-        z = balance_normaliser(weighted, source_target);
-    }
-    out.finalize(z);
+    let mut out = Reservoir::empty();
+    let from_neighbour = pairwise_resample(
+        scene, params, gbuffer, input, &used, n_used, &own, &sp, &mut out, &mut rng, rays,
+    );
+    out.finalize(1.0);
     // A neighbour's sample may be hidden from here: test it, so that what this pass writes
     // (shown now, or read by a further spatial pass) holds only samples seen from here.
-    if source != INVALID && visibility_reuse(params) {
+    if from_neighbour && visibility_reuse(params) {
         keep_if_visible(scene, &mut out, sp.p, sp.n, rays);
     }
     out
+}
+
+/// Spatial reuse: generalised RIS over this pixel's reservoir (the canonical one) and its
+/// neighbours' with defensive pairwise MIS weights (Bitterli 2022, §9.1.3; Wyman et al.
+/// 2023, §7): each neighbour is weighed against this pixel alone, with confidence M, so the
+/// cost is linear in the neighbours and this pixel keeps at least its own share M_c/ΣM of
+/// every sample (a neighbour's sample this pixel would almost never pick cannot dominate
+/// its estimate, as it did with 1/M weights or a 1/Z normaliser). In the unbiased mode the
+/// targets include visibility at each reservoir's owner, since a reservoir never holds a
+/// sample its owner does not see: this pixel's sample at each neighbour takes a shadow
+/// ray. Returns whether the kept sample came from a neighbour.
+#[allow(clippy::too_many_arguments)]
+fn pairwise_resample(
+    scene: &SceneBuffers,
+    params: &FrameParams,
+    gbuffer: &[GBufferTexel],
+    input: &[Reservoir],
+    neighbours: &[u32; MAX_SPATIAL_NEIGHBOURS as usize],
+    n_neighbours: usize,
+    own: &Reservoir,
+    sp: &ShadingPoint,
+    out: &mut Reservoir,
+    rng: &mut Rng,
+    rays: &mut u32,
+) -> bool {
+    let m_c = own.m;
+    let mut m_sum = m_c;
+    let mut j = 0;
+    while j < n_neighbours {
+        m_sum += input[neighbours[j] as usize].m;
+        j += 1;
+    }
+    let m_rest = m_sum - m_c;
+    if m_sum <= 0.0 {
+        return false;
+    }
+    let own_visible = own.has_sample() && own.w > 0.0;
+    let eye = vec3(params.camera.eye);
+    // This pixel's MIS weight for its own sample: its defensive share plus, from each
+    // pair, the part the neighbour would not have produced.
+    let mut mis_own = m_c / m_sum;
+    let mut from_neighbour = false;
+    let mut j = 0;
+    while j < n_neighbours {
+        let q = neighbours[j] as usize;
+        j += 1;
+        let neighbour = input[q];
+        let share = neighbour.m / m_sum;
+        // The neighbour's sample: its own target (it sees it) against this pixel's.
+        let target_here = target_pdf_of::<false>(scene, &neighbour, sp);
+        let mis = share * balance(m_rest * neighbour.target_pdf, m_c * target_here);
+        from_neighbour |= out.resample(&neighbour, target_here, mis, rng.next_f32());
+        if own_visible {
+            let g = &gbuffer[q];
+            let there = target_elsewhere(scene, params, g, eye, own, rays);
+            mis_own += share * balance(m_c * own.target_pdf, m_rest * there);
+        }
+    }
+    if out.resample(own, own.target_pdf, mis_own, rng.next_f32()) {
+        from_neighbour = false;
+    }
+    from_neighbour
 }
 
 /// Pass 5: the pixel's radiance for this frame. A non-finite result is dropped (0), as
