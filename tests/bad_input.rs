@@ -937,3 +937,93 @@ fn usemtl_before_mtllib_still_finds_its_material() {
     assert_eq!(scene.materials[t.material as usize].albedo, [0.9, 0.1, 0.1]);
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
 }
+
+/// A regular polygon of `n` corners in the y = 0 plane (radius 1), then a small emitter.
+fn polygon_obj(n: usize, faces: impl Fn(usize) -> String) -> String {
+    let mut text = String::new();
+    for i in 0..n {
+        let a = std::f64::consts::TAU * i as f64 / n as f64;
+        text += &format!("v {} 0 {}\n", a.cos(), a.sin());
+    }
+    text += &faces(n);
+    text += "v -0.2 3 -0.2\nv 0.2 3 -0.2\nv 0 3 0.2\n";
+    text += &format!("f {} {} {}\n", n + 1, n + 2, n + 3);
+    text
+}
+
+#[test]
+fn large_polygons_load_as_well_shaped_triangles() {
+    // An 800-corner disk and a 1024-segment cylinder's caps (as CAD tools and Blender
+    // export them) were split into fans of slivers sharing one corner, whose BVH was 33–45
+    // levels deep and refused as "pathological". They load, cover exactly the polygon, and
+    // render.
+    for n in [5, 6, 7, 64, 800, 4096] {
+        let text = polygon_obj(n, |n| {
+            format!(
+                "f {}\n",
+                (1..=n).map(|i| i.to_string()).collect::<Vec<_>>().join(" ")
+            )
+        });
+        let scene = runner::scene::parse_obj_text("disk.obj", &text, None).unwrap();
+        assert_eq!(
+            scene.triangles.len(),
+            n - 2 + 1,
+            "{n}-gon: n − 2 triangles and the light"
+        );
+        // (The loader may reorder triangles: the disk's are those in the plane y = 0.)
+        let disk: Vec<_> = scene.triangles.iter().filter(|t| t.p0[1] == 0.0).collect();
+        assert_eq!(disk.len(), n - 2);
+        let area: f64 = disk.iter().map(|t| 0.5 * t.cross().length() as f64).sum();
+        let exact = 0.5 * n as f64 * (std::f64::consts::TAU / n as f64).sin();
+        assert!(
+            (area - exact).abs() < 1e-5 * exact,
+            "{n}-gon: area {area} vs {exact}"
+        );
+        // Every triangle keeps the polygon's winding (its normal points the same way).
+        assert!(disk.iter().all(|t| t.cross().y < 0.0), "{n}-gon");
+    }
+    let disk = write(
+        "disk_800.obj",
+        polygon_obj(800, |n| {
+            format!(
+                "f {}\n",
+                (1..=n).map(|i| i.to_string()).collect::<Vec<_>>().join(" ")
+            )
+        })
+        .as_bytes(),
+    );
+    let o = render_scene(&disk, &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The cylinder: 1024 quads around, a 1024-gon at each end: 2048 + 2 × 1022 triangles.
+    let n = 1024;
+    let mut text = String::new();
+    for i in 0..n {
+        let a = std::f64::consts::TAU * i as f64 / n as f64;
+        text += &format!("v {} 0 {}\nv {} 1 {}\n", a.cos(), a.sin(), a.cos(), a.sin());
+    }
+    for i in 0..n {
+        let j = (i + 1) % n;
+        text += &format!(
+            "f {} {} {} {}\n",
+            2 * i + 1,
+            2 * j + 1,
+            2 * j + 2,
+            2 * i + 2
+        );
+    }
+    let cap = |k: &dyn Fn(usize) -> usize| {
+        format!(
+            "f {}\n",
+            (0..n)
+                .map(|i| k(i).to_string())
+                .collect::<Vec<_>>()
+                .join(" ")
+        )
+    };
+    text += &cap(&|i| 2 * i + 1);
+    text += &cap(&|i| 2 * (n - 1 - i) + 2);
+    let cylinder = write("cylinder_1024.obj", text.as_bytes());
+    let o = render_scene(&cylinder, &["--sky", "1,1,1"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("4092 triangles"));
+}

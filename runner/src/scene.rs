@@ -509,8 +509,10 @@ fn parse_obj(
         }
     };
 
+    // Polygons come back whole and are split by `triangulate_polygon` (tobj's fan from the
+    // first corner turns a many-sided cap into slivers that nest a BVH 40 levels deep).
     let options = tobj::LoadOptions {
-        triangulate: true,
+        triangulate: false,
         single_index: false,
         ignore_points: true,
         ignore_lines: true,
@@ -606,30 +608,47 @@ fn parse_obj(
         let uv_indices = (!mesh.texcoords.is_empty()
             && mesh.texcoord_indices.len() == mesh.indices.len())
         .then_some(&mesh.texcoord_indices);
-        for (f, face) in mesh.indices.as_chunks::<3>().0.iter().enumerate() {
-            let mut triangle = Triangle::new(
-                vertex(face[0])?,
-                vertex(face[1])?,
-                vertex(face[2])?,
-                material,
-            );
-            // Each corner's attribute, if the file has it for all three.
-            let normals = normal_indices.and_then(|ix| {
-                let n = |c: usize| {
-                    let k = 3 * ix[c] as usize;
-                    mesh.normals.get(k..k + 3).map(Vec3::from_slice)
-                };
-                Some([n(3 * f)?, n(3 * f + 1)?, n(3 * f + 2)?])
-            });
-            let uvs = uv_indices.and_then(|ix| {
-                let uv = |c: usize| {
-                    let k = 2 * ix[c] as usize;
-                    mesh.texcoords.get(k..k + 2).map(glam::Vec2::from_slice)
-                };
-                Some([uv(3 * f)?, uv(3 * f + 1)?, uv(3 * f + 2)?])
-            });
-            attributes.attach(&mut triangle, normals, uvs);
-            triangles.push(triangle);
+        // Corners of each polygon: `face_arities` is empty when every face is a triangle.
+        let polygons = mesh.indices.len() / 3;
+        let arity = |p: usize| mesh.face_arities.get(p).map_or(3, |&n| n as usize);
+        let count = if mesh.face_arities.is_empty() {
+            polygons
+        } else {
+            mesh.face_arities.len()
+        };
+        let mut first = 0;
+        let mut corners = Vec::new();
+        for p in 0..count {
+            let n = arity(p);
+            corners.clear();
+            triangulate_polygon(n, &mut corners);
+            for local in &corners {
+                let c = local.map(|k| first + k);
+                let mut triangle = Triangle::new(
+                    vertex(mesh.indices[c[0]])?,
+                    vertex(mesh.indices[c[1]])?,
+                    vertex(mesh.indices[c[2]])?,
+                    material,
+                );
+                // Each corner's attribute, if the file has it for all three.
+                let normals = normal_indices.and_then(|ix| {
+                    let n = |c: usize| {
+                        let k = 3 * ix[c] as usize;
+                        mesh.normals.get(k..k + 3).map(Vec3::from_slice)
+                    };
+                    Some([n(c[0])?, n(c[1])?, n(c[2])?])
+                });
+                let uvs = uv_indices.and_then(|ix| {
+                    let uv = |c: usize| {
+                        let k = 2 * ix[c] as usize;
+                        mesh.texcoords.get(k..k + 2).map(glam::Vec2::from_slice)
+                    };
+                    Some([uv(c[0])?, uv(c[1])?, uv(c[2])?])
+                });
+                attributes.attach(&mut triangle, normals, uvs);
+                triangles.push(triangle);
+            }
+            first += n;
         }
     }
     let mut scene = Scene::with_attributes(triangles, materials, attributes)
@@ -638,6 +657,30 @@ fn parse_obj(
     scene.warnings = warnings;
     scene.camera = camera;
     Ok(scene)
+}
+
+/// Split a polygon of `n` corners (0..n in order) into n − 2 triangles, appended to `out`
+/// as corner triples in the polygon's winding. Quads keep the fan (0 1 2, 0 2 3) every tool
+/// uses; larger polygons are halved recursively (triangle a, mid, b over each chord a–b),
+/// so a convex n-gon becomes triangles whose bounding boxes nest only log₂ n deep instead
+/// of n − 2 slivers sharing one corner. (Concave polygons are split the same way, as the
+/// fan split them before.)
+fn triangulate_polygon(n: usize, out: &mut Vec<[usize; 3]>) {
+    if n <= 4 {
+        out.extend((1..n.saturating_sub(1)).map(|i| [0, i, i + 1]));
+        return;
+    }
+    // Chords still to fill: the polygon's chain from corner a to corner b, closed by a–b.
+    let mut chords = vec![(0, n - 1)];
+    while let Some((a, b)) = chords.pop() {
+        if b - a < 2 {
+            continue;
+        }
+        let mid = (a + b) / 2;
+        out.push([a, mid, b]);
+        chords.push((a, mid));
+        chords.push((mid, b));
+    }
 }
 
 /// The text tobj parses: `mtllib` statements moved before everything else when one comes
