@@ -54,6 +54,52 @@ pub struct Built<N> {
     pub nodes: Vec<N>,
     pub order: Vec<u32>,
     pub build_time: Duration,
+    /// Whether PLOC's tree was too deep for the traversal and a balanced one replaced it.
+    pub balanced: bool,
+}
+
+/// A binary BVH of one triangle per leaf, each node split at the median centroid along
+/// its widest centroid extent: ⌈log₂ n⌉ + 1 levels whatever the geometry. The fallback
+/// where PLOC's tree is deeper than the traversal's stack: slivers nested in one another
+/// (a fan of hundreds of triangles sharing a corner) make PLOC pair them one by one.
+/// Slower to traverse than PLOC's where both exist, never wrong.
+fn balanced_bvh2(boxes: &[PaddedBox]) -> obvhs::bvh2::Bvh2 {
+    use obvhs::bvh2::node::Bvh2Node as Node;
+    let n = boxes.len();
+    let mut indices: Vec<u32> = (0..n as u32).collect();
+    let mut nodes = vec![Node::default(); (2 * n).saturating_sub(1).max(1)];
+    let centre = |i: u32| boxes[i as usize].0.center();
+    let mut next = 1;
+    // (node, first index, end) of the subtrees still to build.
+    let mut work = vec![(0usize, 0usize, n)];
+    while let Some((node, start, end)) = work.pop() {
+        let range = &mut indices[start..end];
+        let mut aabb = Aabb::empty();
+        let mut centres = Aabb::empty();
+        for &i in range.iter() {
+            aabb = aabb.union(&boxes[i as usize].0);
+            centres.extend(centre(i));
+        }
+        nodes[node].aabb = aabb;
+        if range.len() <= 1 {
+            nodes[node].prim_count = range.len() as u32;
+            nodes[node].first_index = start as u32;
+            continue;
+        }
+        let axis = (centres.max - centres.min).max_position();
+        let half = range.len() / 2;
+        range.select_nth_unstable_by(half, |&a, &b| centre(a)[axis].total_cmp(&centre(b)[axis]));
+        nodes[node].prim_count = 0;
+        nodes[node].first_index = next as u32;
+        work.push((next, start, start + half));
+        work.push((next + 1, start + half, end));
+        next += 2;
+    }
+    obvhs::bvh2::Bvh2 {
+        nodes,
+        primitive_indices: indices,
+        ..Default::default()
+    }
 }
 
 /// Binary BVH, leaves of up to 4 triangles after obvhs's SAH-driven collapse.
@@ -64,21 +110,29 @@ pub fn build_bvh2(triangles: &[Triangle]) -> Built<Bvh2Node> {
         max_prims_per_leaf: 4,
         ..params()
     };
-    let bvh = obvhs::bvh2::builder::build_bvh2(&boxes, config, &mut Duration::default());
-    let nodes = bvh
-        .nodes
-        .iter()
-        .map(|n| Bvh2Node {
-            lo: n.aabb.min.to_array(),
-            first: n.first_index,
-            hi: n.aabb.max.to_array(),
-            count: n.prim_count,
-        })
-        .collect();
+    let flatten = |bvh: &obvhs::bvh2::Bvh2| -> Vec<Bvh2Node> {
+        bvh.nodes
+            .iter()
+            .map(|n| Bvh2Node {
+                lo: n.aabb.min.to_array(),
+                first: n.first_index,
+                hi: n.aabb.max.to_array(),
+                count: n.prim_count,
+            })
+            .collect()
+    };
+    let mut bvh = obvhs::bvh2::builder::build_bvh2(&boxes, config, &mut Duration::default());
+    let mut nodes = flatten(&bvh);
+    let balanced = bvh2_depth(&nodes) > kernels::bvh::BVH2_STACK;
+    if balanced {
+        bvh = balanced_bvh2(&boxes);
+        nodes = flatten(&bvh);
+    }
     Built {
         nodes,
         order: bvh.primitive_indices,
         build_time: start.elapsed(),
+        balanced,
     }
 }
 
@@ -87,14 +141,22 @@ pub fn build_bvh2(triangles: &[Triangle]) -> Built<Bvh2Node> {
 pub fn build_cwbvh(triangles: &[Triangle]) -> Built<CwBvhNode> {
     let start = Instant::now();
     let boxes = padded_boxes(triangles);
-    let bvh = obvhs::cwbvh::builder::build_cwbvh(&boxes, params(), &mut Duration::default());
     // Same 80 bytes, read as words on our side.
-    let nodes =
-        bytemuck::cast_slice::<obvhs::cwbvh::node::CwBvhNode, CwBvhNode>(&bvh.nodes).to_vec();
+    let flatten = |bvh: &obvhs::cwbvh::CwBvh| {
+        bytemuck::cast_slice::<obvhs::cwbvh::node::CwBvhNode, CwBvhNode>(&bvh.nodes).to_vec()
+    };
+    let mut bvh = obvhs::cwbvh::builder::build_cwbvh(&boxes, params(), &mut Duration::default());
+    let mut nodes = flatten(&bvh);
+    let balanced = cwbvh_depth(&nodes) > kernels::bvh::CWBVH_STACK;
+    if balanced {
+        bvh = obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(&balanced_bvh2(&boxes), 3, true, false);
+        nodes = flatten(&bvh);
+    }
     Built {
         nodes,
         order: bvh.primitive_indices,
         build_time: start.elapsed(),
+        balanced,
     }
 }
 
@@ -106,6 +168,7 @@ pub fn build(triangles: &[Triangle]) -> Built<kernels::bvh::BvhNode> {
         nodes: vec![Default::default()],
         order: (0..triangles.len() as u32).collect(),
         build_time: Duration::ZERO,
+        balanced: false,
     };
     #[cfg(all(feature = "traversal-bvh2", not(feature = "traversal-brute-force")))]
     return build_bvh2(triangles);
@@ -147,8 +210,8 @@ pub fn cwbvh_depth(nodes: &[CwBvhNode]) -> usize {
 }
 
 /// Refuse BVHs deeper than the kernels' fixed traversal stacks, which would otherwise drop
-/// subtrees and render a wrong image without a word. Only pathological geometry (thousands
-/// of coincident triangles, say) gets there.
+/// subtrees and render a wrong image without a word. The builders fall back to a balanced
+/// tree first, so this is a last guard.
 pub fn check_depth(nodes: &[kernels::bvh::BvhNode]) -> crate::error::Result<()> {
     #[cfg(feature = "traversal-brute-force")]
     let (depth, limit) = (0, 0);

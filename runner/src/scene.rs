@@ -163,6 +163,14 @@ impl Scene {
         attributes.check(&triangles, &materials)?;
         let bvh = crate::accel::build(&triangles);
         crate::accel::check_depth(&bvh.nodes)?;
+        if bvh.balanced {
+            warnings.push(
+                "the usual BVH of this geometry was deeper than the traversal's stack (long \
+                 slivers nested in one another); built a balanced one instead (traversal may \
+                 be slower)"
+                    .to_string(),
+            );
+        }
         let mut triangles = crate::accel::reorder(&triangles, &bvh.order);
         let lights = crate::lights::build_light_table(&mut triangles, &materials);
         Ok(Self {
