@@ -86,6 +86,12 @@ impl<'a> SceneBuffers<'a> {
         !self.any_hit(&Ray::new(origin, d / dist), dist * SHADOW_RAY_END)
     }
 
+    /// Whether surface point p (normal n) sees outside the scene in direction `dir`.
+    pub fn visible_towards(&self, p: Vec3, n: Vec3, dir: Vec3) -> bool {
+        let n = if dir.dot(n) >= 0.0 { n } else { -n };
+        !self.any_hit(&Ray::new(offset_ray_origin(p, n), dir), f32::INFINITY)
+    }
+
     pub fn material_of(&self, prim: u32) -> Material {
         self.materials[self.triangles[prim as usize].material as usize]
     }

@@ -133,6 +133,16 @@ pub fn escaped_radiance(scene: &SceneBuffers, params: &FrameParams, dir: Vec3) -
     sky * sample_bilinear(scene.textures, scene.texels, params.env_texture, uv).truncate() + sun
 }
 
+/// The part of `escaped_radiance` no light sampling draws: a constant sky (a map's
+/// radiance, which `sky` only scales, and the sun's are sampled).
+pub fn unsampled_radiance(params: &FrameParams) -> Vec3 {
+    if params.env_texture == INVALID {
+        vec3(params.sky)
+    } else {
+        Vec3::ZERO
+    }
+}
+
 /// Solid angle of the sun's disk.
 fn sun_solid_angle(params: &FrameParams) -> f32 {
     2.0 * PI * (1.0 - params.sun_cos_max)

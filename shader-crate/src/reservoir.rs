@@ -3,7 +3,13 @@
 //! weight, and remembers the weight sum and how many candidates it has seen (M).
 use crate::types::INVALID;
 
-/// The selected light sample (a light triangle and barycentrics of the point on it),
+/// A reservoir's `triangle` when its sample is a direction of the environment map or the
+/// sun rather than a point on an emissive triangle; (b1, b2) then hold the direction,
+/// octahedrally encoded (`sampling::octahedral_encode`).
+pub const DIRECTION_SAMPLE: u32 = INVALID - 1;
+
+/// The selected light sample (a light triangle and barycentrics of the point on it, or a
+/// direction: see `DIRECTION_SAMPLE`),
 /// `w_sum`, `m`, the unbiased contribution weight `w` (W) and the target pdf p̂ of the
 /// sample at the reservoir's owner. 32 bytes, stored in GPU buffers between passes.
 #[repr(C)]

@@ -11,7 +11,7 @@
 //! constant radiance.
 use crate::bsdf::{Bsdf, BSDF_DIFFUSE};
 use crate::bvh::{surface_hit, SceneBuffers, SurfaceHit};
-use crate::env::{escaped_radiance, infinite_pdf, sample_infinite};
+use crate::env::{escaped_radiance, infinite_pdf, sample_infinite, unsampled_radiance};
 use crate::glam::Vec3;
 use crate::integrators::ris::{self, ShadingPoint};
 use crate::integrators::PixelResult;
@@ -106,7 +106,7 @@ impl PathState {
 
 /// Probability that NEE samples the map or the sun; 0 in the kernels for plain scenes
 /// (see `trace_path`), which then carry none of their code.
-fn infinite_probability<const PLAIN: bool>(params: &FrameParams) -> f32 {
+pub fn infinite_probability<const PLAIN: bool>(params: &FrameParams) -> f32 {
     if PLAIN {
         0.0
     } else {
@@ -216,6 +216,12 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
         let hit = scene.closest_hit(&st.ray, f32::INFINITY);
         *rays += 1;
         if !hit.is_hit() {
+            if ALL_DIFFUSE {
+                radiance += st.throughput * vec3(params.sky); // a constant sky: never sampled
+                break;
+            }
+            // The map's and the sun's light, weighed against their sampling at the vertex
+            // the ray left; a constant sky is never sampled and counts in full.
             let weight = if st.depth == 1 || strategy == BSDF || st.delta || !st.env_sampled {
                 1.0
             } else if strategy == MIS {
@@ -223,12 +229,9 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
             } else {
                 0.0 // NEE sampled the map there already
             };
-            let escaped = if ALL_DIFFUSE {
-                vec3(params.sky)
-            } else {
-                escaped_radiance(scene, params, st.ray.dir)
-            };
-            radiance += st.throughput * escaped * weight;
+            let unsampled = unsampled_radiance(params);
+            let sampled = escaped_radiance(scene, params, st.ray.dir) - unsampled;
+            radiance += st.throughput * (unsampled + sampled * weight);
             break;
         }
         let s = surface_hit(scene, &st.ray, &hit);
@@ -263,9 +266,9 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
         let wo = -st.ray.dir;
         // A delta BSDF has nothing for a light sample to find: its bounce finds the light.
         let sample_lights = strategy != BSDF && has_lights && !bsdf.is_delta();
-        // RIS's first vertex resamples emissive triangles only; NEE anywhere else.
+        // RIS at the first vertex (emissive triangles, the map and the sun), NEE elsewhere.
         let ris_here = strategy == RIS && st.depth == 1;
-        st.env_sampled = sample_lights && !ris_here && p_infinite > 0.0;
+        st.env_sampled = sample_lights && p_infinite > 0.0;
         if sample_lights {
             let direct = if ris_here {
                 ris::direct_ris::<ALL_DIFFUSE>(

@@ -25,11 +25,11 @@
 use crate::bsdf::BSDF_DIFFUSE;
 use crate::bvh::{surface_hit, SceneBuffers, SurfaceHit};
 use crate::camera::jittered_ray;
-use crate::env::escaped_radiance;
+use crate::env::{escaped_radiance, unsampled_radiance};
 use crate::glam::Vec3;
-use crate::integrators::path::{trace_path, PathState, NEE};
+use crate::integrators::path::{infinite_probability, trace_path, PathState, NEE};
 use crate::integrators::ris::{
-    initial_candidates, light_point, shade_reservoir, target_pdf_of, unshadowed_reservoir,
+    initial_candidates, sample_visible, shade_reservoir, target_pdf_of, unshadowed_reservoir,
     ShadingPoint,
 };
 use crate::math::{sin_cos, sqrt, vec3, PI};
@@ -110,11 +110,10 @@ pub fn primary_hit(
     }
 }
 
-/// Whether the surface point (p, n) sees the light point of reservoir `r` (one shadow ray).
+/// Whether the surface point (p, n) sees the light sample of reservoir `r` (one shadow ray).
 fn sees(scene: &SceneBuffers, p: Vec3, n: Vec3, r: &Reservoir, rays: &mut u32) -> bool {
-    let (q, nq, _) = light_point(scene, r.triangle, r.b1, r.b2);
     *rays += 1;
-    scene.visible(p, n, q, nq)
+    sample_visible::<false>(scene, r, p, n)
 }
 
 /// Keep reservoir `r` (owned by the surface point p, n) only if its owner sees the sample;
@@ -217,7 +216,7 @@ fn target_with_visibility(
         return 0.0;
     }
     let sp = shading_point(scene, g, eye);
-    let target = target_pdf_of::<false>(scene, r, &sp);
+    let target = target_pdf_of::<false>(scene, params, r, &sp);
     if target <= 0.0 || seen || !visibility_reuse(params) || sees(scene, sp.p, sp.n, r, rays) {
         target
     } else {
@@ -410,7 +409,7 @@ fn pairwise_resample(
         let neighbour = input[q];
         let share = neighbour.m / m_sum;
         // The neighbour's sample: its own target (it sees it) against this pixel's.
-        let target_here = target_pdf_of::<false>(scene, &neighbour, sp);
+        let target_here = target_pdf_of::<false>(scene, params, &neighbour, sp);
         let mis = share * balance(m_rest * neighbour.target_pdf, m_c * target_here);
         from_neighbour |= out.resample(&neighbour, target_here, mis, rng.next_f32());
         if own_visible {
@@ -468,19 +467,23 @@ fn shaded_radiance(
     let sp = shading_point(scene, g, eye);
     radiance += if visibility_reuse(params) {
         // The passes keep only samples this pixel sees: no shadow ray needed.
-        unshadowed_reservoir::<false>(scene, r, &sp)
+        unshadowed_reservoir::<false>(scene, params, r, &sp)
     } else {
-        shade_reservoir::<false>(scene, r, &sp, rays)
+        shade_reservoir::<false>(scene, params, r, &sp, rays)
     };
-    // Beyond the direct light of the emitters: a bounce continued by NEE path tracing gives
-    // the indirect light, at max_depth 2 the sky's direct light (as NEE's bounce does), and
-    // what a glossy or specular surface reflects of the emitters (delta lobes are beyond
-    // light sampling; the continued path counts what they hit).
-    if params.max_depth > 2 || vec3(params.sky) != Vec3::ZERO || sp.bsdf.kind != BSDF_DIFFUSE {
+    // Beyond the direct light of the emitters, the map and the sun: a bounce continued by
+    // NEE path tracing gives the indirect light, at max_depth 2 a constant sky's light (as
+    // NEE's bounce does), and what a glossy or specular surface reflects of the lights
+    // (delta lobes are beyond light sampling; the continued path counts what they hit).
+    let unsampled_sky = unsampled_radiance(params) != Vec3::ZERO;
+    if params.max_depth > 2 || unsampled_sky || sp.bsdf.kind != BSDF_DIFFUSE {
         let mut rng = pass_rng(params, pixel, STREAM_SHADE);
         let s = SurfaceHit::flat(sp.p, sp.n, g.front != 0, g.prim);
         let mut state = PathState::camera(crate::intersect::Ray::new(eye, -sp.wo));
         if state.bounce(&s, &sp.bsdf, params, &mut rng) {
+            // The reservoir sampled the map and the sun here: what the bounce finds of
+            // them is NEE's to weigh (not counted again).
+            state.env_sampled = infinite_probability::<false>(params) > 0.0;
             radiance += trace_path::<false>(scene, params, state, &mut rng, NEE, rays);
         }
     }

@@ -1,15 +1,21 @@
 //! Resampled importance sampling of direct light (the course's RIS): draw M candidate
-//! light points from the light-source pdf, keep one with weighted reservoir sampling in
+//! light samples from the light-source pdf, keep one with weighted reservoir sampling in
 //! proportion to w = p̂ / p, with target p̂ = BRDF · Le · G (visibility taken as 1), and
 //! shade it with one shadow ray: contribution = f · Le · G · V · W, W = w_sum / (M p̂).
+//! A candidate is a point on an emissive triangle (area measure: p̂ = f · Le · cos' / d²)
+//! or, with the probabilities NEE uses, a direction of the environment map or the sun
+//! (solid-angle measure: p̂ = f · Le); each sample keeps its own measure in p̂, p and the
+//! contribution alike, so the weights p̂ / p compare across the two.
 use crate::bsdf::{Bsdf, BSDF_DIFFUSE};
 use crate::bvh::{SceneBuffers, SurfaceHit};
+use crate::env::{escaped_radiance, sample_infinite};
 use crate::glam::Vec3;
+use crate::integrators::path::infinite_probability;
 use crate::lights::{geometry_term, sample_light};
 use crate::math::{luminance, PI};
-use crate::reservoir::Reservoir;
+use crate::reservoir::{Reservoir, DIRECTION_SAMPLE};
 use crate::rng::Rng;
-use crate::sampling::orthonormal_basis;
+use crate::sampling::{octahedral_decode, octahedral_encode, orthonormal_basis};
 use crate::types::FrameParams;
 
 /// A light point given by triangle and barycentrics: position, front normal, radiance.
@@ -63,25 +69,74 @@ pub fn unshadowed<const ALL_DIFFUSE: bool>(sp: &ShadingPoint, q: Vec3, nq: Vec3,
     sp.bsdf.eval(local(sp.wo), local(wi)) * le * (cos_q / dist2)
 }
 
+/// The unshadowed contribution f · Le · cos of the map and the sun toward the unit
+/// direction `wi` (RGB, solid-angle measure).
+pub fn unshadowed_direction(
+    scene: &SceneBuffers,
+    params: &FrameParams,
+    sp: &ShadingPoint,
+    wi: Vec3,
+) -> Vec3 {
+    let le = escaped_radiance(scene, params, wi);
+    if sp.bsdf.kind == BSDF_DIFFUSE {
+        return (sp.bsdf.albedo / PI) * le * sp.n.dot(wi).max(0.0);
+    }
+    let (t, b) = orthonormal_basis(sp.n);
+    let local = |w: Vec3| Vec3::new(w.dot(t), w.dot(b), w.dot(sp.n));
+    sp.bsdf.eval(local(sp.wo), local(wi)) * le
+}
+
 /// The scalar target function p̂: luminance of the unshadowed contribution.
 pub fn target_pdf<const ALL_DIFFUSE: bool>(sp: &ShadingPoint, q: Vec3, nq: Vec3, le: Vec3) -> f32 {
     luminance(unshadowed::<ALL_DIFFUSE>(sp, q, nq, le))
 }
 
+/// What a reservoir's sample brings to a surface point, without visibility: f · Le · G for
+/// a point on a triangle, f · Le · cos for a direction (each in its own measure).
+pub fn unshadowed_sample<const ALL_DIFFUSE: bool>(
+    scene: &SceneBuffers,
+    params: &FrameParams,
+    r: &Reservoir,
+    sp: &ShadingPoint,
+) -> Vec3 {
+    if !r.has_sample() {
+        return Vec3::ZERO;
+    }
+    if !ALL_DIFFUSE && r.triangle == DIRECTION_SAMPLE {
+        return unshadowed_direction(scene, params, sp, octahedral_decode(r.b1, r.b2));
+    }
+    let (q, nq, le) = light_point(scene, r.triangle, r.b1, r.b2);
+    unshadowed::<ALL_DIFFUSE>(sp, q, nq, le)
+}
+
 /// p̂ of a reservoir's sample at another surface point (reuse re-evaluates it there).
 pub fn target_pdf_of<const ALL_DIFFUSE: bool>(
     scene: &SceneBuffers,
+    params: &FrameParams,
     r: &Reservoir,
     sp: &ShadingPoint,
 ) -> f32 {
-    if !r.has_sample() {
-        return 0.0;
-    }
-    let (q, nq, le) = light_point(scene, r.triangle, r.b1, r.b2);
-    target_pdf::<ALL_DIFFUSE>(sp, q, nq, le)
+    luminance(unshadowed_sample::<ALL_DIFFUSE>(scene, params, r, sp))
 }
 
-/// Stream `params.candidates` light samples through a reservoir (not yet finalised).
+/// Whether surface point p (normal n) sees a reservoir's sample: one shadow ray, to the
+/// light point or out of the scene along the direction.
+pub fn sample_visible<const ALL_DIFFUSE: bool>(
+    scene: &SceneBuffers,
+    r: &Reservoir,
+    p: Vec3,
+    n: Vec3,
+) -> bool {
+    if !ALL_DIFFUSE && r.triangle == DIRECTION_SAMPLE {
+        return scene.visible_towards(p, n, octahedral_decode(r.b1, r.b2));
+    }
+    let (q, nq, _) = light_point(scene, r.triangle, r.b1, r.b2);
+    scene.visible(p, n, q, nq)
+}
+
+/// Stream `params.candidates` light samples through a reservoir (not yet finalised): each
+/// a point on an emissive triangle or, with the map's and the sun's share of NEE's light
+/// choice, a direction of theirs.
 pub fn initial_candidates<const ALL_DIFFUSE: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
@@ -89,62 +144,70 @@ pub fn initial_candidates<const ALL_DIFFUSE: bool>(
     rng: &mut Rng,
 ) -> Reservoir {
     let mut r = Reservoir::empty();
-    if scene.lights.is_empty() {
+    let p_infinite = infinite_probability::<ALL_DIFFUSE>(params);
+    if scene.lights.is_empty() && p_infinite <= 0.0 {
         return r;
     }
     let mut i = 0;
     while i < params.candidates {
+        i += 1;
+        // A number for the choice only when there is one: other scenes keep their streams.
+        let u_choice = if p_infinite > 0.0 {
+            rng.next_f32()
+        } else {
+            1.0
+        };
+        if u_choice < p_infinite {
+            let (dir, pdf) =
+                sample_infinite(scene, params, u_choice, rng.next_f32(), rng.next_f32());
+            let p_hat = luminance(unshadowed_direction(scene, params, sp, dir));
+            let (e1, e2) = octahedral_encode(dir);
+            let weight = if pdf > 0.0 { p_hat / pdf } else { 0.0 };
+            r.update(DIRECTION_SAMPLE, e1, e2, weight, p_hat, rng.next_f32());
+            continue;
+        }
         let ls = sample_light(scene, params.light_sampling, rng);
         let p_hat = target_pdf::<ALL_DIFFUSE>(sp, ls.p, ls.n, ls.emission);
         r.update(
             ls.triangle,
             ls.b1,
             ls.b2,
-            p_hat / ls.pdf_area,
+            p_hat / (ls.pdf_area * (1.0 - p_infinite)),
             p_hat,
             rng.next_f32(),
         );
-        i += 1;
     }
     r
-}
-
-/// The light point of a finalised reservoir that contributes (a sample and W > 0).
-fn contributing_light(scene: &SceneBuffers, r: &Reservoir) -> Option<(Vec3, Vec3, Vec3)> {
-    if !r.has_sample() || r.w <= 0.0 {
-        return None;
-    }
-    Some(light_point(scene, r.triangle, r.b1, r.b2))
 }
 
 /// A finalised reservoir's contribution without visibility: f · Le · G · W.
 pub fn unshadowed_reservoir<const ALL_DIFFUSE: bool>(
     scene: &SceneBuffers,
+    params: &FrameParams,
     r: &Reservoir,
     sp: &ShadingPoint,
 ) -> Vec3 {
-    match contributing_light(scene, r) {
-        Some((q, nq, le)) => unshadowed::<ALL_DIFFUSE>(sp, q, nq, le) * r.w,
-        None => Vec3::ZERO,
+    if r.w > 0.0 {
+        unshadowed_sample::<ALL_DIFFUSE>(scene, params, r, sp) * r.w
+    } else {
+        Vec3::ZERO
     }
 }
 
 /// Shade a finalised reservoir: f · Le · G · V · W, one shadow ray.
 pub fn shade_reservoir<const ALL_DIFFUSE: bool>(
     scene: &SceneBuffers,
+    params: &FrameParams,
     r: &Reservoir,
     sp: &ShadingPoint,
     rays: &mut u32,
 ) -> Vec3 {
-    let Some((q, nq, le)) = contributing_light(scene, r) else {
-        return Vec3::ZERO;
-    };
-    let contribution = unshadowed::<ALL_DIFFUSE>(sp, q, nq, le) * r.w;
+    let contribution = unshadowed_reservoir::<ALL_DIFFUSE>(scene, params, r, sp);
     if contribution == Vec3::ZERO {
         return Vec3::ZERO;
     }
     *rays += 1;
-    if !scene.visible(sp.p, sp.n, q, nq) {
+    if !sample_visible::<ALL_DIFFUSE>(scene, r, sp.p, sp.n) {
         return Vec3::ZERO;
     }
     contribution
@@ -162,5 +225,5 @@ pub fn direct_ris<const ALL_DIFFUSE: bool>(
 ) -> Vec3 {
     let mut r = initial_candidates::<ALL_DIFFUSE>(scene, params, sp, rng);
     r.finalize(r.m);
-    shade_reservoir::<ALL_DIFFUSE>(scene, &r, sp, rays)
+    shade_reservoir::<ALL_DIFFUSE>(scene, params, &r, sp, rays)
 }
