@@ -173,6 +173,8 @@ fn key_of(code: KeyCode) -> Option<Key> {
         KeyCode::KeyB => Key::B,
         KeyCode::Equal | KeyCode::NumpadAdd => Key::PlusSpatial,
         KeyCode::Minus | KeyCode::NumpadSubtract => Key::MinusSpatial,
+        KeyCode::BracketLeft => Key::TurnEnvLeft,
+        KeyCode::BracketRight => Key::TurnEnvRight,
         KeyCode::Escape => Key::Escape,
         KeyCode::Digit1 => Key::Digit(1),
         KeyCode::Digit2 => Key::Digit(2),
@@ -301,6 +303,7 @@ impl App {
         base.camera = self.camera.camera(w as f32 / h as f32);
         base.restir_flags = self.state.restir_flags;
         base.spatial_passes = self.state.spatial_passes;
+        base.env_rotation += self.state.env_turn.to_radians();
         self.params.camera = base.camera;
         let n = if self.restart {
             0

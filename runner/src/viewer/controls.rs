@@ -23,8 +23,14 @@ pub enum Key {
     Digit(u8),
     PlusSpatial,
     MinusSpatial,
+    /// `[` and `]`: turn the environment map about the up axis.
+    TurnEnvLeft,
+    TurnEnvRight,
     Escape,
 }
+
+/// How far one press of `[` or `]` turns the environment.
+pub const ENV_TURN_DEGREES: f32 = 15.0;
 
 /// What a key press asks for.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -33,6 +39,8 @@ pub enum Action {
     ToggleTemporal,
     ToggleUnbiased,
     SpatialPasses(i32),
+    /// Turn the environment by this many degrees about the up axis.
+    TurnEnvironment(f32),
     ResetCamera,
     Save,
     Quit,
@@ -48,6 +56,8 @@ pub fn action_for(key: Key) -> Option<Action> {
         Key::B => Some(Action::ToggleUnbiased),
         Key::PlusSpatial => Some(Action::SpatialPasses(1)),
         Key::MinusSpatial => Some(Action::SpatialPasses(-1)),
+        Key::TurnEnvLeft => Some(Action::TurnEnvironment(-ENV_TURN_DEGREES)),
+        Key::TurnEnvRight => Some(Action::TurnEnvironment(ENV_TURN_DEGREES)),
         Key::R => Some(Action::ResetCamera),
         Key::P => Some(Action::Save),
         Key::Escape => Some(Action::Quit),
@@ -186,6 +196,8 @@ pub struct ViewState {
     pub integrator: Integrator,
     pub restir_flags: u32,
     pub spatial_passes: u32,
+    /// Degrees the environment is turned beyond `--env-rotate`.
+    pub env_turn: f32,
     /// Frames accumulated since the last restart.
     pub accumulated: u32,
     /// Frames rendered in all: the ReSTIR frame index, never reset, so that frames of a
@@ -204,6 +216,7 @@ impl ViewState {
             integrator,
             restir_flags,
             spatial_passes,
+            env_turn: 0.0,
             accumulated: 0,
             frame: 0,
             restir_history: false,
@@ -233,6 +246,12 @@ impl ViewState {
             Action::SpatialPasses(d) => {
                 self.spatial_passes =
                     (self.spatial_passes as i32 + d).clamp(0, MAX_SPATIAL_PASSES as i32) as u32;
+                true
+            }
+            Action::TurnEnvironment(degrees) => {
+                self.env_turn = (self.env_turn + degrees).rem_euclid(360.0);
+                // The light moved: the reservoirs' samples no longer mean what they did.
+                self.restir_history = false;
                 true
             }
             Action::ResetCamera => {
@@ -381,6 +400,19 @@ mod tests {
                 && s.title(64, 32, 1.5).contains("unbiased")
         );
         assert!(!s.apply(action_for(Key::P).unwrap(), &mut c) && s.save_requested);
+        // Turning the environment restarts and drops ReSTIR's history; 24 turns come round.
+        s.frame_done(false);
+        assert!(s.restir_history);
+        assert!(s.apply(action_for(Key::TurnEnvRight).unwrap(), &mut c));
+        assert!(!s.restir_history && s.env_turn == ENV_TURN_DEGREES);
+        for _ in 0..24 {
+            s.apply(action_for(Key::TurnEnvLeft).unwrap(), &mut c);
+        }
+        assert!(
+            (s.env_turn - ENV_TURN_DEGREES).abs() < 1e-3,
+            "{}",
+            s.env_turn
+        );
         s.frame_done(true);
         assert_eq!(s.accumulated, 1);
         assert_eq!(action_for(Key::Digit(9)), None);
