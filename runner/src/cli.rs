@@ -40,6 +40,6 @@ pub enum Command {
     Compare(CompareArgs),
     /// Interactive viewer: WASD/QE move, drag to look, scroll = speed, R reset camera,
     /// 1-6 integrator (ao pt nee mis ris restir), T temporal, +/- spatial passes,
-    /// B biased/unbiased, P save PNG+EXR, Esc quit
+    /// B biased/unbiased, [ ] turn the environment map, P save PNG+EXR, Esc quit
     View(ViewArgs),
 }
