@@ -242,6 +242,7 @@ fn absurd_or_contradictory_options() {
         (&["--fov", "-5"], "--fov must be in (0, 180)"),
         (&["--fov", "180"], "--fov must be in (0, 180)"),
         (&["--eye", "1,2,3", "--target", "1,2,3"], "same point"),
+        (&["--eye", "278,273,-1e20"], "too far apart"),
         (
             &["--eye", "0,0,0", "--target", "0,5,0", "--up", "0,1,0"],
             "parallel",

@@ -60,6 +60,12 @@ pub fn camera_pose(args: &SceneOptions, scene: &Scene) -> Result<CameraPose> {
     if forward.length() <= f32::EPSILON * eye.abs().max_element().max(1.0) {
         bail!("--eye and --target are the same point");
     }
+    // |forward|² overflows f32 beyond ~1.8e19: the view direction would normalise to zero.
+    if !forward.length().is_finite() {
+        bail!(
+            "--eye and --target are too far apart for f32 arithmetic (eye {eye}, target {target})"
+        );
+    }
     if up.length() == 0.0 || forward.normalize().cross(up.normalize()).length() < 1e-6 {
         bail!("--up must not be zero or parallel to the view direction (target - eye)");
     }
