@@ -1,6 +1,7 @@
 //! PLY meshes (ASCII and binary, as scanners write them) through the `ply-rs-bw` crate:
 //! `vertex` elements with x, y, z (and nx, ny, nz as vertex normals when present), `face`
-//! elements with a `vertex_indices` (or `vertex_index`) list, polygons fan-triangulated.
+//! elements with a `vertex_indices` (or `vertex_index`) list, polygons split as OBJ's are
+//! (`scene::triangulate_polygon`).
 //! A PLY carries no material: surfaces are Lambertian grey (`scene::DEFAULT_ALBEDO`).
 use std::path::Path;
 
@@ -101,6 +102,7 @@ pub fn load(path: &Path) -> Result<Scene> {
         ));
     }
     let mut triangles = Vec::new();
+    let mut corners = Vec::new();
     let mut attributes = SurfaceAttributes::default();
     let no_faces = Vec::new();
     for (f, face) in ply
@@ -126,8 +128,10 @@ pub fn load(path: &Path) -> Result<Scene> {
                 positions.len()
             );
         }
-        for k in 1..list.len().saturating_sub(1) {
-            let c = [list[0] as usize, list[k] as usize, list[k + 1] as usize];
+        corners.clear();
+        crate::scene::triangulate_polygon(list.len(), &mut corners);
+        for local in &corners {
+            let c = local.map(|k| list[k] as usize);
             let mut t = Triangle::new(positions[c[0]], positions[c[1]], positions[c[2]], 0);
             let corner_normals = has_normals.then(|| c.map(|i| normals[i]));
             attributes.attach(&mut t, corner_normals, None);

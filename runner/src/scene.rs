@@ -673,7 +673,7 @@ fn parse_obj(
 /// so a convex n-gon becomes triangles whose bounding boxes nest only log₂ n deep instead
 /// of n − 2 slivers sharing one corner. (Concave polygons are split the same way, as the
 /// fan split them before.)
-fn triangulate_polygon(n: usize, out: &mut Vec<[usize; 3]>) {
+pub fn triangulate_polygon(n: usize, out: &mut Vec<[usize; 3]>) {
     if n <= 4 {
         out.extend((1..n.saturating_sub(1)).map(|i| [0, i, i + 1]));
         return;
