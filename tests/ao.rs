@@ -53,7 +53,7 @@ fn open_plane_is_fully_unoccluded() {
         Vec3::new(123.0, -45.0, 0.0),
         Vec3::new(-9000.0, 9000.0, 0.0),
     ] {
-        let v = ambient_occlusion(&scene, p, Vec3::Z, 10_000, f32::INFINITY, &mut rng);
+        let v = ambient_occlusion::<false>(&scene, p, Vec3::Z, 10_000, f32::INFINITY, &mut rng);
         assert_eq!(v, 1.0, "at {p}");
     }
 }
@@ -87,7 +87,7 @@ fn corner_of_two_planes_matches_the_analytic_value() {
     {
         let mut rng = Rng::from_seed(100 + i as u32);
         let p = Vec3::new(d, 0.0, 0.0);
-        let got = ambient_occlusion(&scene, p, Vec3::Z, rays, distance, &mut rng) as f64;
+        let got = ambient_occlusion::<false>(&scene, p, Vec3::Z, rays, distance, &mut rng) as f64;
         let want = corner_unoccluded(p.x, distance);
         // Binomial standard error of a fraction over `rays` rays; floor it for p ∈ {0, 1}.
         let se = (want * (1.0 - want) / rays as f64).sqrt().max(1e-6);

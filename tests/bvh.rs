@@ -5,7 +5,9 @@ mod common;
 
 use common::{closed_box, icosphere};
 use glam::Vec3;
-use kernels::bvh::{brute_force_any_hit, brute_force_closest_hit, bvh2_traverse, cwbvh_traverse};
+use kernels::bvh::{
+    brute_force_any_hit, brute_force_closest_hit, bvh2_traverse, cwbvh_traverse, Cutouts,
+};
 use kernels::intersect::{Hit, Ray};
 use kernels::rng::Rng;
 use kernels::types::{Material, Triangle};
@@ -80,6 +82,7 @@ fn check(name: &str, tris: &[Triangle], ray: &Ray, want: &Hit, got: &Hit, order:
         // A tie: the ray passes through an edge or vertex shared by both triangles.
         let alt = brute_force_closest_hit(
             &tris[got_prim as usize..=got_prim as usize],
+            &Cutouts::NONE,
             ray,
             f32::INFINITY,
         );
@@ -105,14 +108,14 @@ fn agree_with_brute_force(tris: &[Triangle], rays: u32, seed: u32) {
     let mut hits = 0;
     for i in 0..rays {
         let ray = make_ray(i, tris, lo, hi, &mut rng);
-        let want = brute_force_closest_hit(tris, &ray, f32::INFINITY);
+        let want = brute_force_closest_hit(tris, &Cutouts::NONE, &ray, f32::INFINITY);
         hits += want.is_hit() as u32;
         check(
             "bvh2",
             tris,
             &ray,
             &want,
-            &bvh2_traverse(&t2, &b2.nodes, &ray, f32::INFINITY, false),
+            &bvh2_traverse::<false>(&t2, &Cutouts::NONE, &b2.nodes, &ray, f32::INFINITY, false),
             &b2.order,
         );
         check(
@@ -120,7 +123,7 @@ fn agree_with_brute_force(tris: &[Triangle], rays: u32, seed: u32) {
             tris,
             &ray,
             &want,
-            &cwbvh_traverse(&tc, &cw.nodes, &ray, f32::INFINITY, false),
+            &cwbvh_traverse::<false>(&tc, &Cutouts::NONE, &cw.nodes, &ray, f32::INFINITY, false),
             &cw.order,
         );
         // Any-hit with a limit around the closest hit: blocked iff something is nearer.
@@ -129,14 +132,14 @@ fn agree_with_brute_force(tris: &[Triangle], rays: u32, seed: u32) {
         } else {
             1e30
         };
-        let blocked = brute_force_any_hit(tris, &ray, limit);
+        let blocked = brute_force_any_hit(tris, &Cutouts::NONE, &ray, limit);
         assert_eq!(
-            bvh2_traverse(&t2, &b2.nodes, &ray, limit, true).is_hit(),
+            bvh2_traverse::<false>(&t2, &Cutouts::NONE, &b2.nodes, &ray, limit, true).is_hit(),
             blocked,
             "bvh2 any-hit {ray:?} {limit}"
         );
         assert_eq!(
-            cwbvh_traverse(&tc, &cw.nodes, &ray, limit, true).is_hit(),
+            cwbvh_traverse::<false>(&tc, &Cutouts::NONE, &cw.nodes, &ray, limit, true).is_hit(),
             blocked,
             "cwbvh any-hit {ray:?} {limit}"
         );

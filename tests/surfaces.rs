@@ -343,3 +343,67 @@ fn glass_mirror_and_rough_surfaces_agree_with_mitsuba() {
         }
     }
 }
+
+#[test]
+fn cutout_masks_are_holes_for_camera_and_shadow_rays() {
+    // A black plane at height 1 over a grey floor (albedo 0.5), under a sun straight above.
+    // The plane's `map_d` is a 2×1 mask: transparent on the side of u < ½, opaque on the
+    // other. Through the hole the camera sees the floor, lit by the sun through the same
+    // hole: L = ρ/π · L_sun · 2π(1 − cos r). Were camera rays blocked there, the black plane
+    // would show; were shadow rays, the floor would be dark. The other side shows the
+    // plane (black). Both mask kinds: a grey-level image and an image with an alpha channel.
+    let d = dir("surfaces_cutout");
+    let grey = image::GrayImage::from_raw(2, 1, vec![0, 255]).unwrap();
+    grey.save(d.join("mask_grey.png")).unwrap();
+    let rgba =
+        image::RgbaImage::from_raw(2, 1, vec![255, 255, 255, 0, 255, 255, 255, 255]).unwrap();
+    rgba.save(d.join("mask_alpha.png")).unwrap();
+    let radius = 1f32.to_radians();
+    let expected =
+        0.5 / std::f32::consts::PI * 100.0 * 2.0 * std::f32::consts::PI * (1.0 - radius.cos());
+    for mask in ["mask_grey.png", "mask_alpha.png"] {
+        let mtl = format!("newmtl floor\nKd 0.5 0.5 0.5\nnewmtl sheet\nKd 0 0 0\nmap_d {mask}\n");
+        std::fs::write(d.join("cutout.mtl"), mtl).unwrap();
+        let obj = "mtllib cutout.mtl\n\
+            v -5 0 -5\nv 5 0 -5\nv 5 0 5\nv -5 0 5\n\
+            v -1 1 -1\nv 1 1 -1\nv 1 1 1\nv -1 1 1\n\
+            vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+            usemtl floor\nf 1 4 3 2\n\
+            usemtl sheet\nf 5/1 8/4 7/3 6/2\n";
+        let scene = d.join("cutout.obj");
+        std::fs::write(&scene, obj).unwrap();
+        let (image, stderr) = render(
+            &scene,
+            &d.join("cutout.exr"),
+            &[
+                "--integrator",
+                "nee",
+                "--spp",
+                "16",
+                "--sun",
+                "0,1,0",
+                "--sun-radiance",
+                "100,100,100",
+                "--sun-angle",
+                "2",
+            ],
+        );
+        assert!(!stderr.contains("map_d"), "map_d is read: {stderr}");
+        // Mean of the middle rows in the left and right quarters of the 64×64 image.
+        let side = |x0: usize| {
+            let mut s = 0.0;
+            for y in 24..40 {
+                for x in x0..x0 + 12 {
+                    s += image.pixels[y * 64 + x].x;
+                }
+            }
+            s / (16.0 * 12.0)
+        };
+        let (a, b) = (side(2), side(50));
+        let (hole, solid) = if a > b { (a, b) } else { (b, a) };
+        assert!(
+            (hole / expected - 1.0).abs() < 0.02 && solid < 0.01 * expected,
+            "{mask}: through the hole {hole} (expected {expected}), on the sheet {solid}"
+        );
+    }
+}

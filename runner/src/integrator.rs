@@ -56,7 +56,13 @@ impl Integrator {
     fn table(self) -> (&'static str, [Kernel; 2]) {
         let image = |entry_point, pixel| Kernel::Image { entry_point, pixel };
         match self {
-            Integrator::Ao => ("ao", [image("entry::ao_main", ao::render_pixel); 2]),
+            Integrator::Ao => (
+                "ao",
+                [
+                    image("entry::ao_main", ao::render_pixel::<false>),
+                    image("entry::ao_plain_main", ao::render_pixel::<true>),
+                ],
+            ),
             Integrator::Pt => (
                 "pt",
                 [

@@ -86,20 +86,31 @@ impl SurfaceAttributes {
         let invalid = kernels::types::INVALID;
         if let Some(t) = triangles
             .iter()
-            .find(|t| t.shading != invalid && t.shading as usize >= self.shading.len())
+            .find(|t| t.shading != invalid && t.shading_index() as usize >= self.shading.len())
         {
             bail!(
                 "triangle refers to shading attributes {} of {}",
-                t.shading,
+                t.shading_index(),
                 self.shading.len()
             );
         }
-        if let Some(m) = materials.iter().find(|m| {
-            m.albedo_texture != invalid && m.albedo_texture as usize >= self.textures.len()
+        if let Some(t) = triangles.iter().find(|t| {
+            t.alpha_tested()
+                && materials
+                    .get(t.material as usize)
+                    .is_none_or(|m| m.opacity_texture == invalid)
         }) {
+            bail!("triangle {t:?} is marked alpha-tested but its material has no mask");
+        }
+        let texture_ok = |k: u32| k == invalid || (k as usize) < self.textures.len();
+        if let Some(m) = materials
+            .iter()
+            .find(|m| !texture_ok(m.albedo_texture) || !texture_ok(m.opacity_texture))
+        {
             bail!(
-                "material refers to texture {} of {}",
+                "material refers to texture {} or {} of {}",
                 m.albedo_texture,
+                m.opacity_texture,
                 self.textures.len()
             );
         }
@@ -214,8 +225,11 @@ impl Scene {
     /// Whether every material is Lambertian and untextured (the kernels have a faster
     /// variant for that).
     pub fn all_diffuse(&self) -> bool {
+        let invalid = kernels::types::INVALID;
         self.materials.iter().all(|m| {
-            m.kind == kernels::bsdf::BSDF_DIFFUSE && m.albedo_texture == kernels::types::INVALID
+            m.kind == kernels::bsdf::BSDF_DIFFUSE
+                && m.albedo_texture == invalid
+                && m.opacity_texture == invalid
         })
     }
 
@@ -574,6 +588,25 @@ fn parse_obj(
                             material.albedo = [1.0; 3];
                         }
                     }
+                    let mask = m.dissolve_texture.as_deref().map(crate::textures::map_file_name);
+                    if let Some(mask) = mask.filter(|mask| !mask.is_empty()) {
+                        // Keyed apart from colour textures: the mask goes into the alpha.
+                        let key = format!("{mask}\0mask");
+                        let index = *loaded.entry(key).or_insert_with(|| match load_texture(&mask) {
+                            Ok(image) => Some(crate::textures::add(
+                                &mut attributes,
+                                &crate::textures::cutout_mask(image),
+                            )),
+                            Err(why) => {
+                                warnings.push(format!(
+                                    "texture '{mask}' (map_d of material '{}') not loaded: {why}; the surface stays opaque",
+                                    m.name
+                                ));
+                                None
+                            }
+                        });
+                        material.opacity_texture = index.unwrap_or(kernels::types::INVALID);
+                    }
                     material
                 })
                 .collect()
@@ -654,6 +687,12 @@ fn parse_obj(
                     Some([uv(c[0])?, uv(c[1])?, uv(c[2])?])
                 });
                 attributes.attach(&mut triangle, normals, uvs);
+                // A cut-out needs the hit's texture coordinates; without them it is opaque.
+                let cutout =
+                    materials[material as usize].opacity_texture != kernels::types::INVALID;
+                if cutout && uvs.is_some() {
+                    triangle.shading |= kernels::types::ALPHA_TESTED;
+                }
                 triangles.push(triangle);
             }
             first += n;
@@ -749,7 +788,6 @@ fn ignored_mtl_keys(m: &tobj::Material) -> Vec<&'static str> {
         ("map_Ks", m.specular_texture.is_some()),
         ("map_Ns", m.shininess_texture.is_some()),
         ("map_Bump/norm", m.normal_texture.is_some()),
-        ("map_d", m.dissolve_texture.is_some()),
         ("map_Ka", m.ambient_texture.is_some()),
     ] {
         if present {

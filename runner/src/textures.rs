@@ -82,6 +82,18 @@ pub fn decode(path: &Path) -> Result<image::RgbaImage, String> {
 }
 
 /// Append a decoded texture to the texel buffer; its index in the texture table.
+/// A cut-out mask (MTL `map_d`) as the kernels read it, in the alpha channel: the image's
+/// own alpha where it has one (a PNG with transparency), else its grey level (a black and
+/// white mask; the format stores d in [0, 1], not an sRGB colour).
+pub fn cutout_mask(mut image: image::RgbaImage) -> image::RgbaImage {
+    let has_alpha = image.pixels().any(|p| p[3] != u8::MAX);
+    for p in image.pixels_mut() {
+        let mask = if has_alpha { p[3] } else { p[0] };
+        *p = image::Rgba([u8::MAX, u8::MAX, u8::MAX, mask]);
+    }
+    image
+}
+
 pub fn add(attributes: &mut SurfaceAttributes, image: &image::RgbaImage) -> u32 {
     let offset = attributes.texels.len() as u32;
     attributes.texels.extend(

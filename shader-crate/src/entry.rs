@@ -71,12 +71,13 @@ macro_rules! image_kernel {
     };
 }
 
-image_kernel!(ao_main, ao::render_pixel);
+image_kernel!(ao_main, ao::render_pixel::<false>);
 image_kernel!(pt_main, path::pt_pixel::<false>);
 image_kernel!(nee_main, path::nee_pixel::<false>);
 image_kernel!(mis_main, path::mis_pixel::<false>);
 image_kernel!(ris_main, path::ris_pixel::<false>);
-// For scenes whose materials are all Lambertian (see `path::trace_path`).
+// For plain scenes: all Lambertian, untextured, no cut-outs (see `path::trace_path`).
+image_kernel!(ao_plain_main, ao::render_pixel::<true>);
 image_kernel!(pt_diffuse_main, path::pt_pixel::<true>);
 image_kernel!(nee_diffuse_main, path::nee_pixel::<true>);
 image_kernel!(mis_diffuse_main, path::mis_pixel::<true>);

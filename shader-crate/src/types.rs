@@ -25,7 +25,26 @@ pub struct Triangle {
     pub shading: u32,
 }
 
+/// The top bit of `Triangle::shading`: the triangle's material has a cut-out mask, which
+/// traversal tests at every hit (the rest of the field indexes its shading attributes,
+/// which then exist: the mask is read at the hit's texture coordinates).
+pub const ALPHA_TESTED: u32 = 1 << 31;
+
 impl Triangle {
+    /// Index of the triangle's shading attributes (INVALID: none).
+    pub fn shading_index(&self) -> u32 {
+        if self.shading == INVALID {
+            INVALID
+        } else {
+            self.shading & !ALPHA_TESTED
+        }
+    }
+
+    /// Whether traversal must test the material's cut-out mask at hits on this triangle.
+    pub fn alpha_tested(&self) -> bool {
+        self.shading != INVALID && self.shading & ALPHA_TESTED != 0
+    }
+
     pub fn new(p0: Vec3, p1: Vec3, p2: Vec3, material: u32) -> Self {
         Self {
             p0: p0.to_array(),
@@ -83,7 +102,10 @@ pub struct Material {
     pub specular: [f32; 3],
     pub alpha: f32,
     pub ior: f32,
-    pub _pad: [u32; 3],
+    /// A cut-out mask (MTL `map_d`): texture whose alpha below ½ makes the surface a hole
+    /// for every ray (tested during traversal); INVALID: opaque.
+    pub opacity_texture: u32,
+    pub _pad: [u32; 2],
 }
 
 /// Index of refraction of glass, and of coats, when a file gives none.
@@ -100,7 +122,8 @@ impl Material {
             specular: [0.0; 3],
             alpha: 1.0,
             ior: DEFAULT_IOR,
-            _pad: [0; 3],
+            opacity_texture: INVALID,
+            _pad: [0; 2],
         }
     }
     /// A metal: reflectance `specular` at normal incidence, GGX roughness `alpha` (0: mirror).

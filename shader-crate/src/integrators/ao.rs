@@ -11,7 +11,7 @@ use crate::types::FrameParams;
 /// Unoccluded fraction at `p` with normal `n`, from `rays` cosine-weighted rays of length
 /// `distance`. Cosine weighting makes this the cosine-weighted visibility integral
 /// (1/π) ∫ V(ω) cos θ dω estimated with equal weights.
-pub fn ambient_occlusion(
+pub fn ambient_occlusion<const PLAIN: bool>(
     scene: &SceneBuffers,
     p: Vec3,
     n: Vec3,
@@ -25,7 +25,7 @@ pub fn ambient_occlusion(
     while i < rays {
         let local = cosine_hemisphere(rng.next_f32(), rng.next_f32());
         let ray = Ray::new(origin, local_to_world(local, n));
-        if !scene.any_hit(&ray, distance) {
+        if !scene.any_hit::<PLAIN>(&ray, distance) {
             open += 1;
         }
         i += 1;
@@ -35,21 +35,21 @@ pub fn ambient_occlusion(
 
 /// One AO sample for a camera ray: 0 where the ray leaves the scene (no surface, no
 /// occlusion to speak of), the unoccluded fraction (grey) where it hits.
-pub fn ao_sample(
+pub fn ao_sample<const PLAIN: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
     ray: Ray,
     rng: &mut Rng,
     rays: &mut u32,
 ) -> Vec3 {
-    let hit = scene.closest_hit(&ray, f32::INFINITY);
+    let hit = scene.closest_hit::<PLAIN>(&ray, f32::INFINITY);
     *rays += 1;
     if !hit.is_hit() {
         return Vec3::ZERO;
     }
     let s = surface_hit(scene, &ray, &hit);
     *rays += params.ao_rays;
-    Vec3::splat(ambient_occlusion(
+    Vec3::splat(ambient_occlusion::<PLAIN>(
         scene,
         s.p,
         s.n,
@@ -59,8 +59,14 @@ pub fn ao_sample(
     ))
 }
 
-pub fn render_pixel(scene: &SceneBuffers, params: &FrameParams, x: u32, y: u32) -> PixelResult {
+/// `PLAIN`: the scene has no cut-outs (the plain-scene variant; see `bvh::closest_hit`).
+pub fn render_pixel<const PLAIN: bool>(
+    scene: &SceneBuffers,
+    params: &FrameParams,
+    x: u32,
+    y: u32,
+) -> PixelResult {
     accumulate_samples(params, x, y, |ray, rng, rays| {
-        ao_sample(scene, params, ray, rng, rays)
+        ao_sample::<PLAIN>(scene, params, ray, rng, rays)
     })
 }

@@ -160,7 +160,7 @@ pub fn direct_nee<const PLAIN: bool>(
             return Vec3::ZERO;
         }
         *rays += 1;
-        if scene.any_hit(&Ray::new(s.origin_towards(dir), dir), f32::INFINITY) {
+        if scene.any_hit::<PLAIN>(&Ray::new(s.origin_towards(dir), dir), f32::INFINITY) {
             return Vec3::ZERO;
         }
         let weight = if mis {
@@ -183,7 +183,7 @@ pub fn direct_nee<const PLAIN: bool>(
         return Vec3::ZERO;
     }
     *rays += 1;
-    if !scene.visible(s.p, s.n, ls.p, ls.n) {
+    if !scene.visible::<PLAIN>(s.p, s.n, ls.p, ls.n) {
         return Vec3::ZERO;
     }
     let pdf_area = ls.pdf_area * (1.0 - p_infinite);
@@ -213,7 +213,7 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
     let p_infinite = infinite_probability::<ALL_DIFFUSE>(params);
     let has_lights = !scene.lights.is_empty() || p_infinite > 0.0;
     while st.depth <= params.max_depth {
-        let hit = scene.closest_hit(&st.ray, f32::INFINITY);
+        let hit = scene.closest_hit::<ALL_DIFFUSE>(&st.ray, f32::INFINITY);
         *rays += 1;
         if !hit.is_hit() {
             if ALL_DIFFUSE {

@@ -90,7 +90,7 @@ pub fn primary_hit(
     let pixel = y * params.width + x;
     let mut rng = pass_rng(params, pixel, STREAM_PRIMARY);
     let ray = jittered_ray(&params.camera, params.width, params.height, x, y, &mut rng);
-    let hit = scene.closest_hit(&ray, f32::INFINITY);
+    let hit = scene.closest_hit::<false>(&ray, f32::INFINITY);
     *rays += 1;
     if !hit.is_hit() {
         return GBufferTexel {

@@ -128,10 +128,10 @@ pub fn sample_visible<const ALL_DIFFUSE: bool>(
     n: Vec3,
 ) -> bool {
     if !ALL_DIFFUSE && r.triangle == DIRECTION_SAMPLE {
-        return scene.visible_towards(p, n, octahedral_decode(r.b1, r.b2));
+        return scene.visible_towards::<ALL_DIFFUSE>(p, n, octahedral_decode(r.b1, r.b2));
     }
     let (q, nq, _) = light_point(scene, r.triangle, r.b1, r.b2);
-    scene.visible(p, n, q, nq)
+    scene.visible::<ALL_DIFFUSE>(p, n, q, nq)
 }
 
 /// Stream `params.candidates` light samples through a reservoir (not yet finalised): each
