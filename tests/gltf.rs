@@ -323,17 +323,35 @@ fn a_broken_gltf_is_one_error_line() {
     assert!(!d.join("x.png").exists());
 }
 
-#[test]
-fn base_colour_textures_are_read_with_gltf_texture_coordinates() {
-    // A 2x2 floor seen from above (as in tests/surfaces.rs), texture coordinates in glTF's
-    // convention (v down the image): the image must appear upright, red at the top left.
-    let d = dir("gltf_texture");
-    let texels: [[u8; 4]; 4] = [
-        [255, 0, 0, 255],
-        [0, 255, 0, 255],
-        [0, 0, 255, 255],
-        [255, 255, 255, 255],
-    ];
+/// The view of `write_textured_floor`: from above, the floor filling the middle of a
+/// 64x64 image, under a white sky.
+const FLOOR_VIEW: [&str; 20] = [
+    "--eye",
+    "0,3,0",
+    "--target",
+    "0,0,0",
+    "--up",
+    "0,0,-1",
+    "--fov",
+    "30",
+    "--width",
+    "64",
+    "--height",
+    "64",
+    "--spp",
+    "4",
+    "--integrator",
+    "nee",
+    "--sky",
+    "1,1,1",
+    "--max-depth",
+    "2",
+];
+
+/// A 2x2 Lambertian floor at y = 0 textured with a 2x2 RGBA image (rows from the top),
+/// texture coordinates in glTF's convention (v down the image; -z is the image's top).
+/// `material_extra` is appended to the material's JSON (e.g. an alpha mode).
+fn write_textured_floor(path: &Path, texels: &[[u8; 4]; 4], material_extra: &str) {
     let mut png = Vec::new();
     image::RgbaImage::from_raw(2, 2, texels.concat())
         .unwrap()
@@ -359,7 +377,7 @@ fn base_colour_textures_are_read_with_gltf_texture_coordinates() {
         r#"{{"asset":{{"version":"2.0"}},"extensionsUsed":["KHR_materials_specular"],"scene":0,"scenes":[{{"nodes":[0]}}],
 "nodes":[{{"mesh":0}}],
 "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"material":0}}]}}],
-"materials":[{{"pbrMetallicRoughness":{{"baseColorTexture":{{"index":0}},"metallicFactor":0}},"extensions":{{"KHR_materials_specular":{{"specularFactor":0}}}}}}],
+"materials":[{{"pbrMetallicRoughness":{{"baseColorTexture":{{"index":0}},"metallicFactor":0}},"extensions":{{"KHR_materials_specular":{{"specularFactor":0}}}}{material_extra}}}],
 "textures":[{{"source":0}}],
 "images":[{{"uri":"data:image/png;base64,{}"}}],
 "accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,-1],"max":[1,0,1]}},
@@ -370,30 +388,22 @@ fn base_colour_textures_are_read_with_gltf_texture_coordinates() {
         buffer.len(),
         base64(&buffer)
     );
-    std::fs::write(d.join("floor.gltf"), json).unwrap();
-    let flags = [
-        "--eye",
-        "0,3,0",
-        "--target",
-        "0,0,0",
-        "--up",
-        "0,0,-1",
-        "--fov",
-        "30",
-        "--width",
-        "64",
-        "--height",
-        "64",
-        "--spp",
-        "4",
-        "--integrator",
-        "nee",
-        "--sky",
-        "1,1,1",
-        "--max-depth",
-        "2",
+    std::fs::write(path, json).unwrap();
+}
+
+#[test]
+fn base_colour_textures_are_read_with_gltf_texture_coordinates() {
+    // A 2x2 floor seen from above (as in tests/surfaces.rs), texture coordinates in glTF's
+    // convention (v down the image): the image must appear upright, red at the top left.
+    let d = dir("gltf_texture");
+    let texels: [[u8; 4]; 4] = [
+        [255, 0, 0, 255],
+        [0, 255, 0, 255],
+        [0, 0, 255, 255],
+        [255, 255, 255, 255],
     ];
-    let (image, stderr) = render(&d.join("floor.gltf"), &d.join("floor.exr"), &flags);
+    write_textured_floor(&d.join("floor.gltf"), &texels, "");
+    let (image, stderr) = render(&d.join("floor.gltf"), &d.join("floor.exr"), &FLOOR_VIEW);
     assert!(!stderr.contains("warning: '"), "{stderr}");
     let at = |fx: f32, fy: f32| image.pixels[((fy * 64.0) as usize) * 64 + (fx * 64.0) as usize];
     let (lo, hi) = (0.5 - 0.311, 0.5 + 0.311);
@@ -402,6 +412,35 @@ fn base_colour_textures_are_read_with_gltf_texture_coordinates() {
         (at(hi, lo), Vec3::new(0.0, 1.0, 0.0), "top right: green"),
         (at(lo, hi), Vec3::new(0.0, 0.0, 1.0), "bottom left: blue"),
         (at(hi, hi), Vec3::ONE, "bottom right: white"),
+    ] {
+        assert!(
+            (pixel - expected).abs().max_element() < 0.05,
+            "{what}: {pixel}"
+        );
+    }
+}
+
+#[test]
+fn alpha_mask_materials_are_cut_out() {
+    // alphaMode MASK with alphaCutoff 0.3: the top left texel's alpha 0 is a hole (the white
+    // sky shows through), the top right's 100/255 = 0.39 stays solid (green).
+    let d = dir("gltf_mask");
+    let texels: [[u8; 4]; 4] = [
+        [255, 0, 0, 0],
+        [0, 255, 0, 100],
+        [0, 0, 255, 255],
+        [255, 255, 255, 255],
+    ];
+    let mask = r#","alphaMode":"MASK","alphaCutoff":0.3"#;
+    write_textured_floor(&d.join("floor.gltf"), &texels, mask);
+    let (image, stderr) = render(&d.join("floor.gltf"), &d.join("floor.exr"), &FLOOR_VIEW);
+    assert!(!stderr.contains("alpha mode"), "{stderr}");
+    let at = |fx: f32, fy: f32| image.pixels[((fy * 64.0) as usize) * 64 + (fx * 64.0) as usize];
+    let (lo, hi) = (0.5 - 0.311, 0.5 + 0.311);
+    for (pixel, expected, what) in [
+        (at(lo, lo), Vec3::ONE, "top left: a hole onto the sky"),
+        (at(hi, lo), Vec3::new(0.0, 1.0, 0.0), "top right: green"),
+        (at(lo, hi), Vec3::new(0.0, 0.0, 1.0), "bottom left: blue"),
     ] {
         assert!(
             (pixel - expected).abs().max_element() < 0.05,

@@ -128,6 +128,20 @@ pub fn load(path: &Path) -> Result<Scene> {
                     }
                 }
             });
+            // alphaMode MASK: the base colour's alpha (times its factor) against the cutoff,
+            // as a cut-out mask thresholded per texel.
+            if m.alpha_mode() == gltf::material::AlphaMode::Mask {
+                if let Some(rgba) = rgba8(&images[image]) {
+                    let cutoff = m.alpha_cutoff().unwrap_or(0.5);
+                    let factor = pbr.base_color_factor()[3];
+                    let mut mask = rgba;
+                    for p in mask.pixels_mut() {
+                        let solid = p[3] as f32 / 255.0 * factor >= cutoff;
+                        *p = image::Rgba([255, 255, 255, if solid { 255 } else { 0 }]);
+                    }
+                    mat.opacity_texture = crate::textures::add(&mut attributes, &mask);
+                }
+            }
             if let Some(texture) = *slot {
                 if mat.kind == kernels::bsdf::BSDF_CONDUCTOR {
                     ignored.push("base colour textures of metals");
@@ -147,8 +161,10 @@ pub fn load(path: &Path) -> Result<Scene> {
             ),
             ("emissive textures", m.emissive_texture().is_some()),
             (
-                "alpha modes other than OPAQUE",
-                m.alpha_mode() != gltf::material::AlphaMode::Opaque,
+                "alpha mode BLEND, or MASK without a base colour texture",
+                m.alpha_mode() == gltf::material::AlphaMode::Blend
+                    || (m.alpha_mode() == gltf::material::AlphaMode::Mask
+                        && mat.opacity_texture == kernels::types::INVALID),
             ),
         ] {
             if present {
@@ -250,6 +266,12 @@ pub fn load(path: &Path) -> Result<Scene> {
                         .as_ref()
                         .map(|uv| c.map(|i| uv.get(i).copied().unwrap_or(Vec2::ZERO)));
                     attributes.attach(&mut t, corner_normals, corner_uvs);
+                    let masked = materials
+                        .get(material as usize)
+                        .is_some_and(|m| m.opacity_texture != kernels::types::INVALID);
+                    if masked && corner_uvs.is_some() {
+                        t.shading |= kernels::types::ALPHA_TESTED;
+                    }
                     triangles.push(t);
                 }
             }
