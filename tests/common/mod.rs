@@ -55,3 +55,35 @@ pub fn chi_square_critical(dof: usize) -> f64 {
     let z = 3.719;
     k * (1.0 - 2.0 / (9.0 * k) + z * (2.0 / (9.0 * k)).sqrt()).powi(3)
 }
+
+/// An image against a reference (same size): (mean / reference mean − 1, RMS of the
+/// differences of `block`×`block`-pixel averages, relative to the reference's mean), both
+/// over RGB. How the Mitsuba comparisons judge a render: the mean for bias, the blocks for
+/// where the light goes, with the per-pixel noise averaged out.
+pub fn mean_and_block_rms(
+    image: &runner::output::Image,
+    reference: &runner::output::Image,
+    block: usize,
+) -> (f64, f64) {
+    let (w, h) = (reference.width as usize, reference.height as usize);
+    let average = |img: &runner::output::Image, bx: usize, by: usize| {
+        let mut s = Vec3::ZERO;
+        for y in by * block..(by + 1) * block {
+            for x in bx * block..(bx + 1) * block {
+                s += img.pixels[y * w + x];
+            }
+        }
+        s / (block * block) as f32
+    };
+    let (nx, ny) = (w / block, h / block);
+    let mut sq = 0.0;
+    for by in 0..ny {
+        for bx in 0..nx {
+            let d = average(image, bx, by) - average(reference, bx, by);
+            sq += d.length_squared() as f64 / 3.0;
+        }
+    }
+    let (ours, theirs) = (image.mean().element_sum(), reference.mean().element_sum());
+    let rms = (sq / (nx * ny) as f64).sqrt() / theirs as f64 * 3.0;
+    (ours as f64 / theirs as f64 - 1.0, rms)
+}
