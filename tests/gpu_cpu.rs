@@ -149,10 +149,11 @@ fn path_integrators_gpu_match_cpu() {
 
 #[test]
 fn textures_and_vertex_normals_gpu_match_cpu() {
-    // A textured floor with a different normal at each corner (interpolated across it),
-    // under an emitter and an environment map with a sun: the texel buffer, the bilinear
-    // lookup, sRGB and RGBE decoding, shading normals and the map's importance sampling
-    // (NEE picks it half the time) run on both sides.
+    // A textured floor with a different normal at each corner (interpolated across it) and
+    // a checkered cut-out mask, under an emitter and an environment map with a sun: the
+    // texel buffer, the bilinear lookup, sRGB and RGBE decoding, shading normals, the mask
+    // test inside traversal and the map's importance sampling (NEE picks it half the time;
+    // RIS and ReSTIR hold its directions in reservoirs) run on both sides.
     let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("gpu_cpu_surfaces");
     std::fs::create_dir_all(&dir).unwrap();
     let texels: Vec<u8> = (0..16u32 * 16)
@@ -169,9 +170,16 @@ fn textures_and_vertex_normals_gpu_match_cpu() {
         .unwrap()
         .save(dir.join("noise.png"))
         .unwrap();
+    let checker: Vec<u8> = (0..4u32 * 4)
+        .map(|i| if (i + i / 4) % 2 == 0 { 255 } else { 0 })
+        .collect();
+    image::GrayImage::from_raw(4, 4, checker)
+        .unwrap()
+        .save(dir.join("checker.png"))
+        .unwrap();
     std::fs::write(
         dir.join("s.mtl"),
-        "newmtl floor\nKd 1 1 1\nmap_Kd noise.png\nnewmtl light\nKd 0 0 0\nKe 20 20 20\n",
+        "newmtl floor\nKd 1 1 1\nmap_Kd noise.png\nmap_d checker.png\nnewmtl light\nKd 0 0 0\nKe 20 20 20\n",
     )
     .unwrap();
     std::fs::write(
@@ -203,7 +211,12 @@ fn textures_and_vertex_normals_gpu_match_cpu() {
     sa.target = Some(glam::Vec3::ZERO);
     let mut scene = load_scene(&sa).unwrap();
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
-    for integrator in [Integrator::Nee, Integrator::Mis, Integrator::Restir] {
+    for integrator in [
+        Integrator::Nee,
+        Integrator::Mis,
+        Integrator::Ris,
+        Integrator::Restir,
+    ] {
         let mut ka = kernel_args(integrator, spp);
         ka.env = Some(dir.join("sky.hdr"));
         let params = frame_params(&sa, &ka, &mut scene).unwrap();
