@@ -925,6 +925,26 @@ fn stacks_of_duplicate_triangles_load() {
 }
 
 #[test]
+fn stacks_of_distinct_overlapping_triangles_load() {
+    // 20,000 different triangles all spanning one box (the apexes move along an edge): not
+    // duplicates, and PLOC's build was quadratic in them (7-15 s for 20,000, 40-100 s for
+    // 50,000). Their boxes cover the scene's 20,000 times over, so the loader builds the
+    // balanced tree at once and says so.
+    let mut text = String::from("v 0 0 0\nv 1 0 0\n");
+    for i in 0..20_000 {
+        text += &format!("v {} 1 0\n", i as f32 / 20_000.0);
+    }
+    for i in 0..20_000 {
+        text += &format!("f 1 2 {}\n", i + 3);
+    }
+    let obj = write("overlapping.obj", text.as_bytes());
+    let o = render_scene(&obj, &["--integrator", "ao"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("built a balanced one"), "{err}");
+}
+
+#[test]
 fn usemtl_before_mtllib_still_finds_its_material() {
     // The format does not order the two; tobj resolves names as it reads, so this face
     // used to come out grey without a word.

@@ -54,8 +54,33 @@ pub struct Built<N> {
     pub nodes: Vec<N>,
     pub order: Vec<u32>,
     pub build_time: Duration,
-    /// Whether PLOC's tree was too deep for the traversal and a balanced one replaced it.
+    /// Whether a balanced tree replaced PLOC's (too deep for the traversal, or the boxes
+    /// overlap beyond `MAX_OVERLAP`).
     pub balanced: bool,
+}
+
+/// How many times the scene's bounding box the triangles' boxes may cover in all (sum of
+/// their surface areas) before PLOC is not even tried. A mesh's boxes tile its surface:
+/// measured 1.7 (rocks-1m, the bunny) to 4.5 (Cornell box, light-hall), 32 for an
+/// 800-triangle fan of slivers from one corner. Thousands of triangles spanning one box
+/// (50,000: ~50,000; PLOC took 40-100 s on them, quadratic in the stack) go straight to
+/// the balanced build.
+const MAX_OVERLAP: f64 = 1000.0;
+
+/// Sum of the boxes' surface areas over the surface area of their union.
+fn overlap(boxes: &[PaddedBox]) -> f64 {
+    let mut all = Aabb::empty();
+    let mut sum = 0.0f64;
+    for b in boxes {
+        all = all.union(&b.0);
+        sum += b.0.half_area() as f64;
+    }
+    let total = all.half_area() as f64;
+    if total > 0.0 {
+        sum / total
+    } else {
+        0.0
+    }
 }
 
 /// A binary BVH of one triangle per leaf, each node split at the median centroid along
@@ -121,10 +146,15 @@ pub fn build_bvh2(triangles: &[Triangle]) -> Built<Bvh2Node> {
             })
             .collect()
     };
-    let mut bvh = obvhs::bvh2::builder::build_bvh2(&boxes, config, &mut Duration::default());
+    let crowded = overlap(&boxes) > MAX_OVERLAP;
+    let mut bvh = if crowded {
+        balanced_bvh2(&boxes)
+    } else {
+        obvhs::bvh2::builder::build_bvh2(&boxes, config, &mut Duration::default())
+    };
     let mut nodes = flatten(&bvh);
-    let balanced = bvh2_depth(&nodes) > kernels::bvh::BVH2_STACK;
-    if balanced {
+    let balanced = crowded || bvh2_depth(&nodes) > kernels::bvh::BVH2_STACK;
+    if balanced && !crowded {
         bvh = balanced_bvh2(&boxes);
         nodes = flatten(&bvh);
     }
@@ -145,10 +175,15 @@ pub fn build_cwbvh(triangles: &[Triangle]) -> Built<CwBvhNode> {
     let flatten = |bvh: &obvhs::cwbvh::CwBvh| {
         bytemuck::cast_slice::<obvhs::cwbvh::node::CwBvhNode, CwBvhNode>(&bvh.nodes).to_vec()
     };
-    let mut bvh = obvhs::cwbvh::builder::build_cwbvh(&boxes, params(), &mut Duration::default());
+    let crowded = overlap(&boxes) > MAX_OVERLAP;
+    let mut bvh = if crowded {
+        obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(&balanced_bvh2(&boxes), 3, true, false)
+    } else {
+        obvhs::cwbvh::builder::build_cwbvh(&boxes, params(), &mut Duration::default())
+    };
     let mut nodes = flatten(&bvh);
-    let balanced = cwbvh_depth(&nodes) > kernels::bvh::CWBVH_STACK;
-    if balanced {
+    let balanced = crowded || cwbvh_depth(&nodes) > kernels::bvh::CWBVH_STACK;
+    if balanced && !crowded {
         bvh = obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(&balanced_bvh2(&boxes), 3, true, false);
         nodes = flatten(&bvh);
     }

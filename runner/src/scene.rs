@@ -176,9 +176,9 @@ impl Scene {
         crate::accel::check_depth(&bvh.nodes)?;
         if bvh.balanced {
             warnings.push(
-                "the usual BVH of this geometry was deeper than the traversal's stack (long \
-                 slivers nested in one another); built a balanced one instead (traversal may \
-                 be slower)"
+                "the triangles overlap so much (slivers or stacks nested in one another) that \
+                 the usual BVH would be too deep for the traversal or too slow to build; built \
+                 a balanced one instead (traversal may be slower)"
                     .to_string(),
             );
         }
