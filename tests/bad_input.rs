@@ -1060,3 +1060,15 @@ fn large_polygons_load_as_well_shaped_triangles() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stderr).contains("4092 triangles"));
 }
+
+#[test]
+fn coordinates_too_large_for_f32_areas_are_one_error() {
+    // Finite, but a box surface area (∝ extent²) overflows f32 beyond ~1.8e19: obvhs then
+    // built a corrupt BVH and panicked (fuzzer, 2.2e34). Refused with the limit named.
+    let obj = write(
+        "far.obj",
+        b"v 0 0 0\nv 1 0 0\nv 0 1 3e20\nf 1 2 3\nv 0 0 1\nv 1 0 1\nv 0 1 1\nf 4 5 6\n",
+    );
+    let o = render_scene(&obj, &[]);
+    assert_fails_with(&o, "at most 1e15");
+}

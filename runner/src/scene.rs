@@ -145,6 +145,18 @@ impl Scene {
     ) -> Result<Self> {
         let total = triangles.len();
         let triangles: Vec<Triangle> = triangles.into_iter().filter(is_proper).collect();
+        if let Some(far) = triangles
+            .iter()
+            .flat_map(|t| [t.p0, t.p1, t.p2])
+            .flatten()
+            .map(f32::abs)
+            .find(|x| *x > MAX_COORDINATE)
+        {
+            bail!(
+                "a triangle reaches coordinate {far:e}; at most {MAX_COORDINATE:e} is supported \
+                 (the BVH build's f32 surface areas overflow beyond it): scale the scene down"
+            );
+        }
         let mut warnings = Vec::new();
         if triangles.len() < total {
             warnings.push(format!(
@@ -301,6 +313,11 @@ pub fn cornell_box() -> Result<Scene> {
 /// Largest radiance a material or the sky may have: 2²⁴ samples of it still sum to a
 /// finite f32 (a Ke of 1e39 was read as infinity and gave an all-black image).
 pub const MAX_RADIANCE: f32 = 1e20;
+
+/// Largest vertex coordinate a scene may have: box surface areas (∝ extent²) and their
+/// sums in the BVH builder stay finite in f32 below it (at 2e34 they overflowed and
+/// obvhs built a corrupt tree, found by the fuzzer). The solar system in metres fits.
+pub const MAX_COORDINATE: f32 = 1e15;
 
 /// What people's OBJ and MTL files have that tobj does not read: a UTF-8 byte-order mark,
 /// tabs between words (`usemtl<TAB>name`) and comments after data (`v 0 0 0 # top`).
