@@ -2,7 +2,7 @@
 //! sky that lights scenes without emitters.
 mod common;
 
-use common::{mean_and_block_rms, runner, tmp_dir as dir};
+use common::{mean_and_block_rms, render_cpu, runner, tmp_dir as dir};
 
 use std::path::Path;
 
@@ -38,27 +38,12 @@ fn write_quad(path: &Path, z_up: bool) {
 
 /// Render 32x32 on the CPU backend (64 spp unless `extra` says otherwise).
 fn render(scene: &Path, out: &Path, extra: &[&str]) -> (runner::output::Image, String) {
-    let mut args = vec![
-        "render",
-        "--backend",
-        "cpu",
-        "--scene",
-        scene.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--width",
-        "32",
-        "--height",
-        "32",
-    ];
+    let mut args = vec!["--width", "32", "--height", "32"];
     if !extra.contains(&"--spp") {
         args.extend(["--spp", "64"]);
     }
     args.extend_from_slice(extra);
-    let o = runner(&args);
-    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(o.status.success(), "{stderr}");
-    (runner::output::read_image(out).unwrap(), stderr)
+    render_cpu(scene, out, &args)
 }
 
 /// Mean of the central 16x16 pixels of a 32x32 image.
@@ -565,37 +550,32 @@ fn an_environment_lit_scene_agrees_with_mitsuba() {
         ("restir", "64"),
     ] {
         let out = d.join(format!("{integrator}.exr"));
-        let o = runner(&[
-            "render",
-            "--backend",
-            "cpu",
-            "--scene",
-            scene.to_str().unwrap(),
-            "--env",
-            env.to_str().unwrap(),
-            "--eye",
-            "0,3,5",
-            "--target",
-            "0,0.3,0",
-            "--up",
-            "0,1,0",
-            "--fov",
-            "40",
-            "--width",
-            "96",
-            "--height",
-            "96",
-            "--max-depth",
-            "2",
-            "--spp",
-            spp,
-            "--integrator",
-            integrator,
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let image = runner::output::read_image(&out).unwrap();
+        let (image, _) = render_cpu(
+            &scene,
+            &out,
+            &[
+                "--env",
+                env.to_str().unwrap(),
+                "--eye",
+                "0,3,5",
+                "--target",
+                "0,0.3,0",
+                "--up",
+                "0,1,0",
+                "--fov",
+                "40",
+                "--width",
+                "96",
+                "--height",
+                "96",
+                "--max-depth",
+                "2",
+                "--spp",
+                spp,
+                "--integrator",
+                integrator,
+            ],
+        );
         let (rel, rms) = mean_and_block_rms(&image, &reference, 12);
         eprintln!("{integrator}: mean {rel:+.4} relative, block RMS {rms:.4} of the mean");
         assert!(

@@ -2,7 +2,7 @@
 //! transforms, cameras and embedded textures are read.
 mod common;
 
-use common::tmp_dir as dir;
+use common::{render_cpu as render, tmp_dir as dir};
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -161,27 +161,6 @@ fn cornell_gltf_objects() -> (Vec<Object>, Vec<String>) {
         }
     }
     (objects, materials)
-}
-
-fn render(scene: &Path, out: &Path, extra: &[&str]) -> (runner::output::Image, String) {
-    let mut args = vec![
-        "render",
-        "--backend",
-        "cpu",
-        "--scene",
-        scene.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ];
-    args.extend_from_slice(extra);
-    let o = Command::new(env!("CARGO_BIN_EXE_runner"))
-        .args(&args)
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(o.status.success(), "{stderr}");
-    (runner::output::read_image(out).unwrap(), stderr)
 }
 
 #[test]

@@ -2,7 +2,7 @@
 //! normals are read, and broken files are one error line.
 mod common;
 
-use common::tmp_dir as dir;
+use common::{render_cpu, tmp_dir as dir};
 
 use std::process::Command;
 
@@ -37,15 +37,10 @@ fn header(format: &str, v: usize, f: usize) -> String {
 }
 
 fn render(scene: &std::path::Path, out: &std::path::Path) -> (runner::output::Image, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_runner"))
-        .args([
-            "render",
-            "--backend",
-            "cpu",
-            "--scene",
-            scene.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
+    render_cpu(
+        scene,
+        out,
+        &[
             "--width",
             "32",
             "--height",
@@ -60,13 +55,8 @@ fn render(scene: &std::path::Path, out: &std::path::Path) -> (runner::output::Im
             "39.3",
             "--integrator",
             "mis",
-        ])
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(o.status.success(), "{stderr}");
-    (runner::output::read_image(out).unwrap(), stderr)
+        ],
+    )
 }
 
 #[test]

@@ -3,7 +3,7 @@
 //! albedo, and what cannot be loaded is said, not silently dropped.
 mod common;
 
-use common::{mean_and_block_rms, runner, tmp_dir as dir};
+use common::{mean_and_block_rms, render_cpu, tmp_dir as dir};
 
 use std::path::{Path, PathBuf};
 
@@ -13,13 +13,6 @@ use glam::Vec3;
 /// image and stderr.
 fn render(scene: &Path, out: &Path, extra: &[&str]) -> (runner::output::Image, String) {
     let mut args = vec![
-        "render",
-        "--backend",
-        "cpu",
-        "--scene",
-        scene.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
         "--width",
         "64",
         "--height",
@@ -36,10 +29,7 @@ fn render(scene: &Path, out: &Path, extra: &[&str]) -> (runner::output::Image, S
         "2",
     ];
     args.extend_from_slice(extra);
-    let o = runner(&args);
-    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(o.status.success(), "{stderr}");
-    (runner::output::read_image(out).unwrap(), stderr)
+    render_cpu(scene, out, &args)
 }
 
 fn mean(image: &runner::output::Image) -> f64 {
@@ -293,25 +283,20 @@ fn glass_mirror_and_rough_surfaces_agree_with_mitsuba() {
                 .unwrap();
         for (integrator, spp, max_rms) in runs {
             let out = d.join(format!("{name}_{integrator}.exr"));
-            let o = runner(&[
-                "render",
-                "--backend",
-                "cpu",
-                "--scene",
-                scene.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-                "--width",
-                "96",
-                "--height",
-                "96",
-                "--spp",
-                spp,
-                "--integrator",
-                integrator,
-            ]);
-            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-            let image = runner::output::read_image(&out).unwrap();
+            let (image, _) = render_cpu(
+                &scene,
+                &out,
+                &[
+                    "--width",
+                    "96",
+                    "--height",
+                    "96",
+                    "--spp",
+                    spp,
+                    "--integrator",
+                    integrator,
+                ],
+            );
             let (rel, rms) = mean_and_block_rms(&image, &reference, 12);
             eprintln!(
                 "{name} {integrator}: mean {rel:+.4} relative, block RMS {rms:.4} of the mean"

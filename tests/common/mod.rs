@@ -15,6 +15,29 @@ pub fn runner(args: &[&str]) -> std::process::Output {
         .expect("runner binary runs")
 }
 
+/// `runner render --backend cpu --scene SCENE --out OUT ARGS…`, which must succeed: the
+/// image it wrote and its stderr.
+pub fn render_cpu(
+    scene: &std::path::Path,
+    out: &std::path::Path,
+    args: &[&str],
+) -> (runner::output::Image, String) {
+    let mut all = vec![
+        "render",
+        "--backend",
+        "cpu",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    all.extend_from_slice(args);
+    let o = runner(&all);
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{stderr}");
+    (runner::output::read_image(out).unwrap(), stderr)
+}
+
 /// A folder of the test's own under cargo's temporary directory.
 pub fn tmp_dir(name: &str) -> std::path::PathBuf {
     let d = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
