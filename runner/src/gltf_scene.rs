@@ -266,12 +266,6 @@ pub fn load(path: &Path) -> Result<Scene> {
                         .as_ref()
                         .map(|uv| c.map(|i| uv.get(i).copied().unwrap_or(Vec2::ZERO)));
                     attributes.attach(&mut t, corner_normals, corner_uvs);
-                    let masked = materials
-                        .get(material as usize)
-                        .is_some_and(|m| m.opacity_texture != kernels::types::INVALID);
-                    if masked && corner_uvs.is_some() {
-                        t.shading |= kernels::types::ALPHA_TESTED;
-                    }
                     triangles.push(t);
                 }
             }

@@ -81,6 +81,22 @@ impl SurfaceAttributes {
         self.shading.push(shading);
     }
 
+    /// Flag the triangles whose material has a cut-out mask for the traversal's test
+    /// (`kernels::types::ALPHA_TESTED`), for every loader alike. A mask needs the hit's
+    /// texture coordinates: a triangle without them stays opaque. Call after `check`.
+    fn mark_cutouts(&self, triangles: &mut [Triangle], materials: &[Material]) {
+        let invalid = kernels::types::INVALID;
+        for t in triangles {
+            t.shading = t.shading_index(); // the flag is derived here, never taken as given
+            let masked = materials[t.material as usize].opacity_texture != invalid;
+            let has_uvs = t.shading != invalid
+                && self.shading[t.shading as usize].flags & kernels::types::SHADING_UVS != 0;
+            if masked && has_uvs {
+                t.shading |= kernels::types::ALPHA_TESTED;
+            }
+        }
+    }
+
     /// Every index the kernels will follow stays inside its buffer.
     fn check(&self, triangles: &[Triangle], materials: &[Material]) -> Result<()> {
         let invalid = kernels::types::INVALID;
@@ -93,14 +109,6 @@ impl SurfaceAttributes {
                 t.shading_index(),
                 self.shading.len()
             );
-        }
-        if let Some(t) = triangles.iter().find(|t| {
-            t.alpha_tested()
-                && materials
-                    .get(t.material as usize)
-                    .is_none_or(|m| m.opacity_texture == invalid)
-        }) {
-            bail!("triangle {t:?} is marked alpha-tested but its material has no mask");
         }
         let texture_ok = |k: u32| k == invalid || (k as usize) < self.textures.len();
         if let Some(m) = materials
@@ -184,6 +192,8 @@ impl Scene {
             );
         }
         attributes.check(&triangles, &materials)?;
+        let mut triangles = triangles;
+        attributes.mark_cutouts(&mut triangles, &materials);
         let bvh = crate::accel::build(&triangles);
         crate::accel::check_depth(&bvh.nodes)?;
         if bvh.balanced {
@@ -704,12 +714,6 @@ fn parse_obj(
                     Some([uv(c[0])?, uv(c[1])?, uv(c[2])?])
                 });
                 attributes.attach(&mut triangle, normals, uvs);
-                // A cut-out needs the hit's texture coordinates; without them it is opaque.
-                let cutout =
-                    materials[material as usize].opacity_texture != kernels::types::INVALID;
-                if cutout && uvs.is_some() {
-                    triangle.shading |= kernels::types::ALPHA_TESTED;
-                }
                 triangles.push(triangle);
             }
             first += n;
