@@ -179,12 +179,23 @@ pub fn sample_infinite(
     u1: f32,
     u2: f32,
 ) -> (Vec3, f32) {
-    let dir = if u_choice < params.env_light_probability {
+    let dir = infinite_direction(scene, params, u_choice, u1, u2);
+    (dir, infinite_pdf(scene, params, dir))
+}
+
+/// The direction of `sample_infinite` without its density.
+pub fn infinite_direction(
+    scene: &SceneBuffers,
+    params: &FrameParams,
+    u_choice: f32,
+    u1: f32,
+    u2: f32,
+) -> Vec3 {
+    if u_choice < params.env_light_probability {
         sample_env(scene, params, u1, u2).0
     } else {
         sample_sun(params, u1, u2).0
-    };
-    (dir, infinite_pdf(scene, params, dir))
+    }
 }
 
 /// The mixture density of `sample_infinite` (light selection included).
