@@ -4,6 +4,7 @@ use runner::backend::Backend;
 use runner::cpu::CpuBackend;
 use runner::gpu::{adapters, GpuBackend, GpuContext};
 use runner::integrator::{Integrator, LightSampling};
+use runner::light_shares::LightShares;
 use runner::options::{frame_params, KernelOptions, SceneOptions, UpAxis};
 use runner::output::Image;
 use runner::render::render;
@@ -43,6 +44,7 @@ fn kernel_args(integrator: Integrator, spp: u32) -> KernelOptions {
         sun_radiance: glam::Vec3::ZERO,
         sun_angle: 0.53,
         light_sampling: LightSampling::Power,
+        light_shares: LightShares::Seen,
         ao_rays: 4,
         ao_distance: None,
         seed: 7,

@@ -13,6 +13,7 @@ pub mod generate;
 pub mod gltf_scene;
 pub mod gpu;
 pub mod integrator;
+pub mod light_shares;
 pub mod lights;
 pub mod logging;
 pub mod memory;

@@ -9,6 +9,7 @@ use kernels::types::FrameParams;
 use crate::bail;
 use crate::error::Result;
 use crate::integrator::{Integrator, LightSampling, RestirBias};
+use crate::light_shares::LightShares;
 use crate::scene::Scene;
 
 /// Largest image side and size: 16 bytes of accumulation per pixel must fit in memory and
@@ -31,7 +32,8 @@ pub const RUSSIAN_ROULETTE_DEPTH: u32 = 3;
 #[derive(Args, Debug, Clone)]
 pub struct SceneOptions {
     /// OBJ scene file (MTL files next to it), glTF 2.0 (.gltf, .glb), PLY, or a built-in scene: cornell-box,
-    /// many-lights, light-hall, rocks-<N> (N triangles, e.g. rocks-1m) [default: cornell-box]
+    /// many-lights, light-hall, rocks-<N> (N triangles, e.g. rocks-1m), shell-<N> (a closed
+    /// sphere seen from inside) [default: cornell-box]
     #[arg(long, value_name = "FILE|NAME")]
     pub scene: Option<PathBuf>,
     /// Image width in pixels
@@ -104,6 +106,10 @@ pub struct KernelOptions {
     /// How NEE and MIS pick a light triangle
     #[arg(long, value_enum, default_value_t = LightSampling::Power)]
     pub light_sampling: LightSampling,
+    /// How NEE and RIS split light samples between emissive triangles, the environment map
+    /// and the sun
+    #[arg(long, value_enum, default_value_t = LightShares::Seen)]
+    pub light_shares: LightShares,
     /// RIS/ReSTIR: light candidates per pixel
     #[arg(long, default_value_t = 32, value_name = "M")]
     pub candidates: u32,
@@ -302,17 +308,7 @@ pub fn frame_params(
         bail!("--ao-distance must be a positive number, got {ao_distance}");
     }
     let camera = crate::camera::camera(args, scene)?;
-    // NEE's light sources share its samples equally: emissive triangles, the map, the sun
-    // (a choice by power would be better; the map's and the sun's power depend on the
-    // scene's size).
-    let sources = [
-        !scene.lights.is_empty(),
-        env_texture != kernels::types::INVALID,
-        kernel.sun.is_some(),
-    ];
-    let count = sources.iter().filter(|s| **s).count().max(1) as f32;
-    let light_share = |present: bool| if present { 1.0 / count } else { 0.0 };
-    Ok(FrameParams {
+    let params = FrameParams {
         camera,
         prev_camera: camera,
         width: args.width,
@@ -323,8 +319,6 @@ pub fn frame_params(
         sky: sky.to_array(),
         env_texture,
         env_rotation: kernel.env_rotate.to_radians(),
-        env_light_probability: light_share(env_texture != kernels::types::INVALID),
-        sun_light_probability: light_share(kernel.sun.is_some()),
         sun_cos_max: (0.5 * kernel.sun_angle).to_radians().cos(),
         sun_direction: kernel.sun.unwrap_or(Vec3::Y).normalize().to_array(),
         sun_radiance: if kernel.sun.is_some() {
@@ -346,6 +340,17 @@ pub fn frame_params(
         spatial_radius,
         spatial_passes: kernel.spatial_passes,
         ..Default::default()
+    };
+    let [_, env_share, sun_share] = crate::light_shares::shares(
+        kernel.light_shares,
+        &scene.kernel(),
+        &params,
+        0.5 * scene.extent(),
+    );
+    Ok(FrameParams {
+        env_light_probability: env_share,
+        sun_light_probability: sun_share,
+        ..params
     })
 }
 
