@@ -3,6 +3,9 @@
 //!   over a floor with occluders (the course's case where plain NEE struggles).
 //! - `rocks-N`: N triangles (e.g. rocks-1m) of displaced icospheres scattered over a
 //!   ground, with real depth complexity, lit by one large area light.
+//! - `shell-N`: the inside of a closed black UV sphere of N triangles (pole fans of
+//!   slivers included), camera at its centre: under `--sky` any lit pixel is a ray that
+//!   slipped between triangles (the watertightness test and measurement).
 use std::path::PathBuf;
 
 use clap::Args;
@@ -44,8 +47,8 @@ use crate::error::Result;
 use crate::scene::{CameraHint, Scene};
 
 /// Names accepted by `--scene` besides OBJ paths.
-pub const BUILTIN_NAMES: &str =
-    "cornell-box, many-lights, light-hall, rocks-<N> (N triangles, e.g. rocks-100k, rocks-1m)";
+pub const BUILTIN_NAMES: &str = "cornell-box, many-lights, light-hall, rocks-<N> (N triangles, \
+     e.g. rocks-100k, rocks-1m), shell-<N> (a closed sphere seen from inside)";
 
 /// A generated scene before BVH construction.
 pub struct Generated {
@@ -86,14 +89,20 @@ pub fn builtin(name: &str) -> Option<Result<Generated>> {
         "many-lights" => Some(Ok(many_lights())),
         "light-hall" => Some(Ok(light_hall())),
         _ => {
-            let n = name.strip_prefix("rocks-")?;
-            Some(match parse_count(n) {
-                Some(n) => {
-                    crate::memory::check(name, n as u64 * crate::memory::BYTES_PER_SCENE_TRIANGLE)
-                        .map(|()| rocks(n))
-                }
+            let (kind, n): (&str, fn(usize) -> Generated) =
+                if let Some(n) = name.strip_prefix("rocks-") {
+                    (n, rocks)
+                } else {
+                    (name.strip_prefix("shell-")?, shell)
+                };
+            Some(match parse_count(kind) {
+                Some(count) => crate::memory::check(
+                    name,
+                    count as u64 * crate::memory::BYTES_PER_SCENE_TRIANGLE,
+                )
+                .map(|()| n(count)),
                 None => Err(crate::error::Error(format!(
-                    "bad triangle count in '{name}' (use e.g. rocks-100k, rocks-1m)"
+                    "bad triangle count in '{name}' (use e.g. rocks-100k, rocks-1m, shell-1m)"
                 ))),
             })
         }
@@ -441,6 +450,55 @@ pub fn rocks(target: usize) -> Generated {
             target: Vec3::new(0.0, 2.0, 0.0),
             up: Vec3::Y,
             fov: 50.0,
+        },
+    }
+}
+
+/// A closed UV sphere of radius 1 and about `target` triangles (rings × 2·rings segments,
+/// fans of slivers at the poles), black, seen from its centre. Every vertex is computed
+/// once, so neighbouring triangles share bit-identical edges.
+pub fn shell(target: usize) -> Generated {
+    // 2·S·(R − 1) triangles with S = 2R segments.
+    let rings = ((target as f64 / 4.0).sqrt().round() as usize).max(2);
+    let segments = 2 * rings;
+    let vertex = |ring: usize, segment: usize| {
+        let theta = std::f32::consts::PI * ring as f32 / rings as f32;
+        let phi = std::f32::consts::TAU * (segment % segments) as f32 / segments as f32;
+        Vec3::new(
+            theta.sin() * phi.cos(),
+            theta.cos(),
+            theta.sin() * phi.sin(),
+        )
+    };
+    let (north, south) = (Vec3::Y, -Vec3::Y);
+    let grid: Vec<Vec<Vec3>> = (1..rings)
+        .map(|r| (0..segments).map(|s| vertex(r, s)).collect())
+        .collect();
+    let mut tris = Vec::with_capacity(2 * segments * (rings - 1));
+    for s in 0..segments {
+        let t = (s + 1) % segments;
+        tris.push(Triangle::new(north, grid[0][t], grid[0][s], 0));
+        tris.push(Triangle::new(
+            south,
+            grid[rings - 2][s],
+            grid[rings - 2][t],
+            0,
+        ));
+        for r in 0..rings - 2 {
+            let (a, b) = (grid[r][s], grid[r][t]);
+            let (c, d) = (grid[r + 1][s], grid[r + 1][t]);
+            tris.push(Triangle::new(a, b, d, 0));
+            tris.push(Triangle::new(a, d, c, 0));
+        }
+    }
+    Generated {
+        triangles: tris,
+        materials: vec![Material::new(Vec3::ZERO, Vec3::ZERO)],
+        camera: CameraHint {
+            eye: Vec3::ZERO,
+            target: Vec3::new(0.3, 0.4, -1.0),
+            up: Vec3::Y,
+            fov: 100.0,
         },
     }
 }

@@ -105,9 +105,9 @@ pub fn intersect_watertight(
     let cx = c.x - s.x * c.z;
     let cy = c.y - s.y * c.z;
     // Scaled barycentrics: u weights p0, v weights p1, w weights p2.
-    let u = cx * by - cy * bx;
-    let v = ax * cy - ay * cx;
-    let w = bx * ay - by * ax;
+    let u = edge_function(cx, cy, bx, by);
+    let v = edge_function(ax, ay, cx, cy);
+    let w = edge_function(bx, by, ax, ay);
     if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
         return None;
     }
@@ -140,6 +140,29 @@ pub fn intersect_watertight(
         return None;
     }
     Some((t, v * inv_det, w * inv_det))
+}
+
+/// The edge function px·qy − py·qx of the projected edge from p to q (twice the signed
+/// area of the origin, p, q), computed with the endpoints in one canonical order and then
+/// signed. Woop's test is watertight only if the two triangles sharing an edge get exactly
+/// opposite values for it; they see the edge in opposite directions, and a compiler or GPU
+/// driver may fuse either product into a multiply-add (rust-gpu emits no NoContraction),
+/// which rounds px·qy − py·qx and −(qx·py − qy·px) differently: rays slipped through
+/// shared edges on the H100 (2 in 133 M inside a closed sphere) but never on the CPU. In
+/// one order both triangles run the same operations on the same numbers, fused or not.
+fn edge_function(px: f32, py: f32, qx: f32, qy: f32) -> f32 {
+    let swap = qx < px || (qx == px && qy < py);
+    let (ax, ay, bx, by) = if swap {
+        (qx, qy, px, py)
+    } else {
+        (px, py, qx, qy)
+    };
+    let e = ax * by - ay * bx;
+    if swap {
+        -e
+    } else {
+        e
+    }
 }
 
 /// Bound on the relative error of n chained float operations: nε / (1 − nε), ε = 2⁻²⁴.
