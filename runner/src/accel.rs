@@ -39,12 +39,17 @@ fn padded_boxes(triangles: &[Triangle]) -> Vec<PaddedBox> {
 
 use glam::Vec3;
 
-/// obvhs's "medium" preset: PLOC with a medium search radius and 5% reinsertion.
+/// obvhs's "very slow" preset: PLOC with a medium search radius, then every node
+/// considered once for reinsertion (Meister & Bittner 2018). Against the "medium" preset
+/// (5% reinsertion) on the H100, AO 64 rays/px at 1080p: city-1m 64.1 → 50.5 ms, grass-1m
+/// 149.5 → 114.4 ms, rocks-1m, spheres-1m and shell-1m 0.5–3% faster; the build of 1M
+/// triangles takes ~1.2 s instead of ~0.7 s. (Its `pre_split` applies only to obvhs's
+/// triangle builder, and our flat grounds are never split by its area criterion anyway.)
 fn params() -> BvhBuildParams {
     BvhBuildParams {
         ploc_search_distance: PlocSearchDistance::Medium,
-        sort_precision: SortPrecision::U64,
-        ..BvhBuildParams::medium_build()
+        sort_precision: SortPrecision::U128,
+        ..BvhBuildParams::very_slow_build()
     }
 }
 

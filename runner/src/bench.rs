@@ -13,6 +13,7 @@ use kernels::types::FrameParams;
 
 use crate::backend::Backend;
 use crate::error::Result;
+use crate::integrator::Integrator;
 use crate::options::frame_params;
 use crate::render::{accumulate, RenderStats};
 use crate::scene::load as load_scene;
@@ -264,7 +265,67 @@ pub struct BenchArgs {
     /// GPU needs a while to raise its clocks
     #[arg(long, default_value_t = 1.0, value_name = "SECONDS")]
     pub warmup: f64,
-    /// Print one JSON object instead of the table
+    /// Print one JSON object instead of the table (with --suite: one per line)
     #[arg(long)]
     pub json: bool,
+    /// Run the benchmark suite instead of one workload: AO (1 spp x 64 AO rays), NEE (direct
+    /// light, 1 spp) and pt (8 segments, 1 spp) on each built-in suite scene (rocks-1m,
+    /// spheres-1m, city-1m, grass-1m, shell-1m), one table; --scene, --integrator, --spp,
+    /// --ao-rays and --max-depth are set by the suite
+    #[arg(long)]
+    pub suite: bool,
+}
+
+/// The suite's workloads: (integrator, spp, AO rays per sample, max depth).
+const SUITE_WORKLOADS: [(Integrator, u32, u32, u32); 3] = [
+    (Integrator::Ao, 1, 64, 1),
+    (Integrator::Nee, 1, 4, 2),
+    (Integrator::Pt, 1, 4, 8),
+];
+
+/// `runner bench --suite`: every workload on every suite scene; a table of ms per frame
+/// and rays per second (or one JSON object per run).
+pub fn suite(args: &BenchArgs) -> Result<String> {
+    let mut out = String::new();
+    if !args.json {
+        let _ = writeln!(
+            out,
+            "{:<12} {:>9} {:>9}  {:>20}  {:>20}  {:>20}",
+            "scene", "triangles", "BVH ms", "AO 64 rays/px", "NEE direct 1 spp", "pt depth 8 1 spp"
+        );
+    }
+    for name in crate::generate::SUITE {
+        let mut row = String::new();
+        for (integrator, spp, ao_rays, max_depth) in SUITE_WORKLOADS {
+            let mut run = args.clone();
+            run.suite = false;
+            run.scene.scene = Some(name.into());
+            run.kernel.integrator = integrator;
+            run.kernel.spp = spp;
+            run.kernel.ao_rays = ao_rays;
+            run.kernel.max_depth = max_depth;
+            let r = bench(&run)?;
+            if args.json {
+                let _ = writeln!(out, "{}", r.json());
+                continue;
+            }
+            if row.is_empty() {
+                let _ = write!(
+                    row,
+                    "{:<12} {:>9} {:>9.0}",
+                    name, r.triangles, r.bvh_build_ms
+                );
+            }
+            let cell = format!(
+                "{:.2} ms {}rays/s",
+                median(&r.frame_ms),
+                with_unit(r.rays_per_second())
+            );
+            let _ = write!(row, "  {cell:>20}");
+        }
+        if !row.is_empty() {
+            let _ = writeln!(out, "{row}");
+        }
+    }
+    Ok(out)
 }

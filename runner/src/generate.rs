@@ -6,6 +6,9 @@
 //! - `shell-N`: the inside of a closed black UV sphere of N triangles (pole fans of
 //!   slivers included), camera at its centre: under `--sky` any lit pixel is a ray that
 //!   slipped between triangles (the watertightness test and measurement).
+//! - `spheres-N`, `city-N`, `grass-N`: with `rocks-N` and `shell-N`, the benchmark suite
+//!   (`runner bench --suite`): UV spheres with pole slivers, long thin boxes, thin grass
+//!   blades, each on a huge two-triangle ground under a row of area lights.
 use std::path::PathBuf;
 
 use clap::Args;
@@ -47,8 +50,9 @@ use crate::error::Result;
 use crate::scene::{CameraHint, Scene};
 
 /// Names accepted by `--scene` besides OBJ paths.
-pub const BUILTIN_NAMES: &str = "cornell-box, many-lights, light-hall, rocks-<N> (N triangles, \
-     e.g. rocks-100k, rocks-1m), shell-<N> (a closed sphere seen from inside)";
+pub const BUILTIN_NAMES: &str = "cornell-box, many-lights, light-hall, and of N triangles (e.g. \
+     rocks-1m, rocks-100k): rocks-<N>, spheres-<N>, city-<N>, grass-<N>, shell-<N> (a closed \
+     sphere seen from inside)";
 
 /// A generated scene before BVH construction.
 pub struct Generated {
@@ -83,18 +87,30 @@ fn parse_count(s: &str) -> Option<usize> {
 #[allow(clippy::approx_constant)]
 const ROCK_PHASE_RANGE: f32 = 6.283;
 
+/// A generator of a built-in scene of about N triangles.
+type SizedGenerator = fn(usize) -> Generated;
+
+/// Built-in scenes of any size: "<prefix>N" (N triangles, e.g. 1m).
+const SIZED: [(&str, SizedGenerator); 5] = [
+    ("rocks-", rocks),
+    ("shell-", shell),
+    ("spheres-", spheres),
+    ("city-", city),
+    ("grass-", grass),
+];
+
+/// The suite `runner bench --suite` runs: structurally different scenes of ~1M triangles.
+pub const SUITE: [&str; 5] = ["rocks-1m", "spheres-1m", "city-1m", "grass-1m", "shell-1m"];
+
 /// The built-in scene called `name`, or None if there is none by that name.
 pub fn builtin(name: &str) -> Option<Result<Generated>> {
     match name {
         "many-lights" => Some(Ok(many_lights())),
         "light-hall" => Some(Ok(light_hall())),
         _ => {
-            let (kind, n): (&str, fn(usize) -> Generated) =
-                if let Some(n) = name.strip_prefix("rocks-") {
-                    (n, rocks)
-                } else {
-                    (name.strip_prefix("shell-")?, shell)
-                };
+            let (kind, n) = SIZED
+                .iter()
+                .find_map(|(prefix, f)| Some((name.strip_prefix(prefix)?, *f)))?;
             Some(match parse_count(kind) {
                 Some(count) => crate::memory::check(
                     name,
@@ -454,51 +470,201 @@ pub fn rocks(target: usize) -> Generated {
     }
 }
 
-/// A closed UV sphere of radius 1 and about `target` triangles (rings × 2·rings segments,
-/// fans of slivers at the poles), black, seen from its centre. Every vertex is computed
-/// once, so neighbouring triangles share bit-identical edges.
-pub fn shell(target: usize) -> Generated {
-    // 2·S·(R − 1) triangles with S = 2R segments.
-    let rings = ((target as f64 / 4.0).sqrt().round() as usize).max(2);
+/// A closed UV sphere: `rings` × 2·`rings` segments, fans of slivers at the poles, each
+/// vertex computed once (neighbouring triangles share bit-identical edges), scaled by
+/// `radius` per axis; counter-clockwise seen from outside. 4·rings·(rings − 1) triangles.
+pub fn uv_sphere(centre: Vec3, radius: Vec3, rings: usize, material: u32) -> Vec<Triangle> {
+    let rings = rings.max(2);
     let segments = 2 * rings;
     let vertex = |ring: usize, segment: usize| {
         let theta = std::f32::consts::PI * ring as f32 / rings as f32;
         let phi = std::f32::consts::TAU * (segment % segments) as f32 / segments as f32;
-        Vec3::new(
+        let unit = Vec3::new(
             theta.sin() * phi.cos(),
             theta.cos(),
             theta.sin() * phi.sin(),
-        )
+        );
+        centre + unit * radius
     };
-    let (north, south) = (Vec3::Y, -Vec3::Y);
+    let (north, south) = (vertex(0, 0), vertex(rings, 0));
     let grid: Vec<Vec<Vec3>> = (1..rings)
         .map(|r| (0..segments).map(|s| vertex(r, s)).collect())
         .collect();
     let mut tris = Vec::with_capacity(2 * segments * (rings - 1));
     for s in 0..segments {
         let t = (s + 1) % segments;
-        tris.push(Triangle::new(north, grid[0][t], grid[0][s], 0));
+        tris.push(Triangle::new(north, grid[0][t], grid[0][s], material));
         tris.push(Triangle::new(
             south,
             grid[rings - 2][s],
             grid[rings - 2][t],
-            0,
+            material,
         ));
         for r in 0..rings - 2 {
             let (a, b) = (grid[r][s], grid[r][t]);
             let (c, d) = (grid[r + 1][s], grid[r + 1][t]);
-            tris.push(Triangle::new(a, b, d, 0));
-            tris.push(Triangle::new(a, d, c, 0));
+            tris.push(Triangle::new(a, b, d, material));
+            tris.push(Triangle::new(a, d, c, material));
         }
     }
+    tris
+}
+
+/// Rings of a UV sphere of about `triangles` triangles.
+fn rings_for(triangles: usize) -> usize {
+    ((triangles as f64 / 4.0).sqrt().round() as usize).max(2)
+}
+
+/// The inside of a closed black UV sphere of radius 1 and about `target` triangles, seen
+/// from its centre.
+pub fn shell(target: usize) -> Generated {
     Generated {
-        triangles: tris,
+        triangles: uv_sphere(Vec3::ZERO, Vec3::ONE, rings_for(target), 0),
         materials: vec![Material::new(Vec3::ZERO, Vec3::ZERO)],
         camera: CameraHint {
             eye: Vec3::ZERO,
             target: Vec3::new(0.3, 0.4, -1.0),
             up: Vec3::Y,
             fov: 100.0,
+        },
+    }
+}
+
+/// The suite's ground: one huge quad (two triangles far larger than anything on them, the
+/// case that defeats a BVH without splits) of half-size `half`, and `lights` emissive
+/// squares of side `side` in a row at height `height`. Materials: 0 ground, 1 objects,
+/// 2 lights.
+fn ground_and_lights(
+    half: f32,
+    height: f32,
+    lights: usize,
+    side: f32,
+) -> (Vec<Triangle>, Vec<Material>) {
+    let mut tris: Vec<Triangle> = quad(
+        [
+            Vec3::new(-half, 0.0, -half),
+            Vec3::new(-half, 0.0, half),
+            Vec3::new(half, 0.0, half),
+            Vec3::new(half, 0.0, -half),
+        ],
+        0,
+    )
+    .to_vec();
+    for i in 0..lights {
+        let x = (i as f32 + 0.5) / lights as f32 * half - 0.5 * half;
+        let h = 0.5 * side;
+        tris.extend(quad(
+            [
+                Vec3::new(x - h, height, -h),
+                Vec3::new(x + h, height, -h),
+                Vec3::new(x + h, height, h),
+                Vec3::new(x - h, height, h),
+            ],
+            2,
+        ));
+    }
+    let materials = vec![
+        Material::new(Vec3::splat(0.5), Vec3::ZERO),
+        Material::new(Vec3::new(0.6, 0.55, 0.5), Vec3::ZERO),
+        // Bright enough that the ground below gets an irradiance of about 2π.
+        Material::new(
+            Vec3::splat(0.5),
+            Vec3::splat(2.0 * height * height / (lights as f32 * side * side)),
+        ),
+    ];
+    (tris, materials)
+}
+
+/// `spheres-N`: 50 UV spheres (squashed, slivers at their poles) of N/50 triangles each,
+/// scattered over a huge two-triangle ground.
+pub fn spheres(target: usize) -> Generated {
+    const COUNT: usize = 50;
+    let mut rng = SceneRng::new(11);
+    let mut u = move || rng.next_f32();
+    let (mut tris, materials) = ground_and_lights(200.0, 60.0, 4, 8.0);
+    let rings = rings_for(target / COUNT);
+    for _ in 0..COUNT {
+        let r = 1.0 + 4.0 * u();
+        let radius = Vec3::new(r * (0.8 + 0.4 * u()), r * (0.5 + 0.7 * u()), r);
+        let c = Vec3::new((u() - 0.5) * 60.0, radius.y * 0.8, (u() - 0.5) * 60.0);
+        tris.extend(uv_sphere(c, radius, rings, 1));
+    }
+    Generated {
+        triangles: tris,
+        materials,
+        camera: CameraHint {
+            eye: Vec3::new(0.0, 18.0, 45.0),
+            target: Vec3::new(0.0, 2.0, 0.0),
+            up: Vec3::Y,
+            fov: 50.0,
+        },
+    }
+}
+
+/// `city-N`: N/12 long thin boxes (towers, walls and beams, up to 40:1) packed over a huge
+/// ground.
+pub fn city(target: usize) -> Generated {
+    let mut rng = SceneRng::new(12);
+    let mut u = move || rng.next_f32();
+    let count = (target / 12).max(1);
+    let extent = 2.0 * (count as f32).sqrt();
+    let (mut tris, materials) =
+        ground_and_lights(4.0 * extent, 0.4 * extent + 20.0, 6, 0.05 * extent);
+    for _ in 0..count {
+        let long = 2.0 + 18.0 * u() * u();
+        let thin = 0.1 + 0.4 * u();
+        let tall = 0.2 + 12.0 * u() * u() * u();
+        let size = if u() < 0.5 {
+            Vec3::new(long, tall, thin)
+        } else {
+            Vec3::new(thin, tall, long)
+        };
+        let lo = Vec3::new((u() - 0.5) * 2.0 * extent, 0.0, (u() - 0.5) * 2.0 * extent);
+        tris.extend(closed_box(lo, lo + size, 1));
+    }
+    Generated {
+        triangles: tris,
+        materials,
+        camera: CameraHint {
+            eye: Vec3::new(0.0, 0.15 * extent, 0.9 * extent),
+            target: Vec3::new(0.0, 0.0, 0.2 * extent),
+            up: Vec3::Y,
+            fov: 50.0,
+        },
+    }
+}
+
+/// `grass-N`: N/3 blades (a thin tapered quad and a tip, bent by the wind) over a huge
+/// ground, seen from just above them.
+pub fn grass(target: usize) -> Generated {
+    let mut rng = SceneRng::new(13);
+    let mut u = move || rng.next_f32();
+    let count = (target / 3).max(1);
+    let extent = 0.05 * (count as f32).sqrt();
+    let (mut tris, materials) =
+        ground_and_lights(8.0 * extent, 3.0 + 0.5 * extent, 4, 0.1 * extent);
+    for _ in 0..count {
+        let base = Vec3::new((u() - 0.5) * 2.0 * extent, 0.0, (u() - 0.5) * 2.0 * extent);
+        let angle = std::f32::consts::TAU * u();
+        let side = Vec3::new(angle.cos(), 0.0, angle.sin()) * (0.004 + 0.004 * u());
+        let height = 0.15 + 0.35 * u();
+        let lean = Vec3::new(0.3 * (u() - 0.5), 0.0, 0.3 * (u() - 0.5)) * height;
+        let mid = base + Vec3::Y * (0.6 * height) + 0.4 * lean;
+        let tip = base + Vec3::Y * height + lean;
+        tris.extend(quad(
+            [base - side, base + side, mid + 0.7 * side, mid - 0.7 * side],
+            1,
+        ));
+        tris.push(Triangle::new(mid - 0.7 * side, mid + 0.7 * side, tip, 1));
+    }
+    Generated {
+        triangles: tris,
+        materials,
+        camera: CameraHint {
+            eye: Vec3::new(0.0, 0.7, 0.8 * extent),
+            target: Vec3::new(0.0, 0.0, 0.4 * extent),
+            up: Vec3::Y,
+            fov: 60.0,
         },
     }
 }
@@ -561,6 +727,24 @@ mod tests {
     /// The built-in scenes are fixed: every number and reference image in the README and
     /// the tests refers to them. (The first emitter of many-lights and one of its vertices,
     /// as the scene has been since it was written.)
+    #[test]
+    fn sized_scenes_have_about_the_triangles_asked_for() {
+        for (prefix, generate) in SIZED {
+            for n in [50_000usize, 300_000] {
+                let g = generate(n);
+                let got = g.triangles.len() as f64;
+                assert!(
+                    (got / n as f64 - 1.0).abs() < 0.2,
+                    "{prefix}{n}: {got} triangles"
+                );
+                assert!(g.into_scene().is_ok(), "{prefix}{n} loads");
+            }
+        }
+        for name in SUITE {
+            assert!(builtin(name).is_some(), "{name} is a built-in scene");
+        }
+    }
+
     #[test]
     fn built_in_scenes_do_not_change() {
         let g = many_lights();

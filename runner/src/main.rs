@@ -42,6 +42,9 @@ fn main() -> ExitCode {
     }
     let result = match cli.command {
         Command::Render(args) => runner::render::run(&args),
+        Command::Bench(args) if args.suite => {
+            runner::bench::suite(&args).and_then(|table| print_stdout(&table))
+        }
         Command::Bench(args) => runner::bench::bench(&args)
             .and_then(|r| print_stdout(&if args.json { r.json() } else { r.table() })),
         Command::Generate(args) => runner::generate::run(&args),
