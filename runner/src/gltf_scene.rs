@@ -231,6 +231,10 @@ pub fn load(path: &Path) -> Result<Scene> {
             let uvs: Option<Vec<Vec2>> = reader
                 .read_tex_coords(0)
                 .map(|t| t.into_f32().map(|[u, v]| Vec2::new(u, 1.0 - v)).collect());
+            // COLOR_0 is linear (the specification), alpha ignored.
+            let colours: Option<Vec<Vec3>> = reader
+                .read_colors(0)
+                .map(|c| c.into_rgb_f32().map(Vec3::from).collect());
             let indices: Vec<u32> = match reader.read_indices() {
                 Some(i) => i.into_u32().collect(),
                 None => (0..positions.len() as u32).collect(),
@@ -265,7 +269,10 @@ pub fn load(path: &Path) -> Result<Scene> {
                     let corner_uvs = uvs
                         .as_ref()
                         .map(|uv| c.map(|i| uv.get(i).copied().unwrap_or(Vec2::ZERO)));
-                    attributes.attach(&mut t, corner_normals, corner_uvs);
+                    let corner_colours = colours
+                        .as_ref()
+                        .map(|col| c.map(|i| col.get(i).copied().unwrap_or(Vec3::ONE)));
+                    attributes.attach(&mut t, corner_normals, corner_uvs, corner_colours);
                     triangles.push(t);
                 }
             }

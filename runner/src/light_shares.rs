@@ -159,7 +159,7 @@ fn seen(scene: &SceneBuffers, params: &FrameParams) -> [f32; 3] {
             }
             let s = surface_hit(scene, &ray, &hit);
             let material = scene.material_of(hit.prim);
-            let bsdf = scene.bsdf_of(&material, s.front_face, scene.albedo_of(&material, s.uv));
+            let bsdf = scene.bsdf_of(&material, s.front_face, scene.albedo_of(&material, &s));
             if bsdf.is_delta() {
                 continue;
             }

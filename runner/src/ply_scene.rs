@@ -52,6 +52,23 @@ fn indices(p: &Property) -> Option<Vec<i64>> {
     })
 }
 
+/// A vertex's colour as a linear albedo factor: `red`/`green`/`blue` (or `diffuse_*`), as
+/// 0..255 integers or 0..1 floats of display (sRGB) values, as scanners write them.
+fn vertex_colour(v: &ply_rs_bw::ply::DefaultElement) -> Option<Vec3> {
+    let channel = |name: &str| {
+        let p = v.get(name).or_else(|| v.get(&format!("diffuse_{name}")))?;
+        Some(match p {
+            Property::UChar(x) => *x as f32 / 255.0,
+            Property::UShort(x) => *x as f32 / 65535.0,
+            Property::Float(x) => *x,
+            Property::Double(x) => *x as f32,
+            _ => return None,
+        })
+    };
+    let rgb = [channel("red")?, channel("green")?, channel("blue")?];
+    Some(crate::scene::srgb_colour(&rgb))
+}
+
 pub fn load(path: &Path) -> Result<Scene> {
     let name = path.display().to_string();
     if let Ok(md) = std::fs::metadata(path) {
@@ -77,6 +94,7 @@ pub fn load(path: &Path) -> Result<Scene> {
     let vertices = ply.payload.get("vertex").unwrap_or(&no_vertices);
     let mut positions = Vec::with_capacity(vertices.len());
     let mut normals = Vec::with_capacity(vertices.len());
+    let mut colours = Vec::with_capacity(vertices.len());
     for (i, v) in vertices.iter().enumerate() {
         let get = |k: &str| v.get(k).and_then(scalar);
         let (Some(x), Some(y), Some(z)) = (get("x"), get("y"), get("z")) else {
@@ -90,17 +108,13 @@ pub fn load(path: &Path) -> Result<Scene> {
         if let (Some(nx), Some(ny), Some(nz)) = (get("nx"), get("ny"), get("nz")) {
             normals.push(Vec3::new(nx, ny, nz));
         }
+        if let Some(c) = vertex_colour(v) {
+            colours.push(c);
+        }
     }
     let has_normals = !normals.is_empty() && normals.len() == positions.len();
+    let has_colours = !colours.is_empty() && colours.len() == positions.len();
     let mut warnings = Vec::new();
-    if vertices
-        .first()
-        .is_some_and(|v| v.contains_key("red") || v.contains_key("diffuse_red"))
-    {
-        warnings.push(format!(
-            "'{name}': vertex colours are not supported yet; the surface is grey"
-        ));
-    }
     let mut triangles = Vec::new();
     let mut corners = Vec::new();
     let mut attributes = SurfaceAttributes::default();
@@ -134,7 +148,8 @@ pub fn load(path: &Path) -> Result<Scene> {
             let c = local.map(|k| list[k] as usize);
             let mut t = Triangle::new(positions[c[0]], positions[c[1]], positions[c[2]], 0);
             let corner_normals = has_normals.then(|| c.map(|i| normals[i]));
-            attributes.attach(&mut t, corner_normals, None);
+            let corner_colours = has_colours.then(|| c.map(|i| colours[i]));
+            attributes.attach(&mut t, corner_normals, None, corner_colours);
             triangles.push(t);
         }
     }

@@ -53,15 +53,17 @@ pub struct SurfaceAttributes {
 }
 
 impl SurfaceAttributes {
-    /// Give `triangle` its corners' normals and/or texture coordinates (all three corners
-    /// each, or none); nothing is stored when it has neither. Every loader goes through here.
+    /// Give `triangle` its corners' normals, texture coordinates and/or linear colours (all
+    /// three corners each, or none); nothing is stored when it has none of them. Every
+    /// loader goes through here.
     pub fn attach(
         &mut self,
         triangle: &mut Triangle,
         normals: Option<[Vec3; 3]>,
         uvs: Option<[glam::Vec2; 3]>,
+        colours: Option<[Vec3; 3]>,
     ) {
-        if normals.is_none() && uvs.is_none() {
+        if normals.is_none() && uvs.is_none() && colours.is_none() {
             return;
         }
         let mut shading = TriangleShading::default();
@@ -76,6 +78,19 @@ impl SurfaceAttributes {
                 shading.uvs[2 * k..2 * k + 2].copy_from_slice(&v.to_array());
             }
             shading.flags |= kernels::types::SHADING_UVS;
+        }
+        if let Some(c) = colours {
+            // An albedo factor: non-negative and finite (RGBE keeps 8 bits of the largest
+            // channel, plenty for a colour).
+            shading.colours = c.map(|v| {
+                let v = if v.is_finite() {
+                    v.max(Vec3::ZERO)
+                } else {
+                    Vec3::ZERO
+                };
+                crate::environment::linear_to_rgbe(v)
+            });
+            shading.flags |= kernels::types::SHADING_COLOURS;
         }
         triangle.shading = self.shading.len() as u32;
         self.shading.push(shading);
@@ -244,15 +259,19 @@ impl Scene {
         (lo, hi)
     }
 
-    /// Whether every material is Lambertian and untextured (the kernels have a faster
-    /// variant for that).
+    /// Whether every material is Lambertian and untextured and no vertex has a colour (the
+    /// kernels have a faster variant for that).
     pub fn all_diffuse(&self) -> bool {
         let invalid = kernels::types::INVALID;
         self.materials.iter().all(|m| {
             m.kind == kernels::bsdf::BSDF_DIFFUSE
                 && m.albedo_texture == invalid
                 && m.opacity_texture == invalid
-        })
+        }) && self
+            .attributes
+            .shading
+            .iter()
+            .all(|a| a.flags & kernels::types::SHADING_COLOURS == 0)
     }
 
     /// Length of the bounding-box diagonal: the scene's natural length scale.
@@ -713,7 +732,15 @@ fn parse_obj(
                     };
                     Some([uv(c[0])?, uv(c[1])?, uv(c[2])?])
                 });
-                attributes.attach(&mut triangle, normals, uvs);
+                // `v x y z r g b`: colours as 0..1 display (sRGB) values, as MeshLab and
+                // others write them.
+                let colours = (mesh.vertex_color.len() == mesh.positions.len()).then(|| {
+                    c.map(|corner| {
+                        let k = 3 * mesh.indices[corner] as usize;
+                        srgb_colour(&mesh.vertex_color[k..k + 3])
+                    })
+                });
+                attributes.attach(&mut triangle, normals, uvs, colours);
                 triangles.push(triangle);
             }
             first += n;
@@ -1014,6 +1041,11 @@ fn parse_camera_hint(name: &str, text: &str) -> Result<Option<CameraHint>> {
 /// The Cornell box in the source tree (tests load it as a file; the binary embeds it).
 pub fn default_scene_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/cornell_box.obj")
+}
+
+/// A colour given as 0..1 sRGB (display) values, as a linear albedo factor.
+pub fn srgb_colour(c: &[f32]) -> Vec3 {
+    Vec3::from_slice(c).map(|x| kernels::texture::srgb_to_linear(x.clamp(0.0, 1.0)))
 }
 
 /// Load the scene named on the command line: an OBJ file, or a built-in scene's name

@@ -11,7 +11,7 @@ use crate::texture::sample_bilinear;
 use crate::types::cwbvh_meta::{self, FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
 use crate::types::{
     Bvh2Node, CwBvhNode, Light, Material, TextureInfo, Triangle, TriangleShading, INVALID,
-    SHADING_NORMALS, SHADING_UVS,
+    SHADING_COLOURS, SHADING_NORMALS, SHADING_UVS,
 };
 
 /// The node type of the traversal compiled in.
@@ -151,7 +151,7 @@ impl<'a> SceneBuffers<'a> {
     /// ray arrived on: the material's index entering through the front, its inverse leaving.
     pub fn bsdf(&self, s: &SurfaceHit) -> Bsdf {
         let m = self.material_of(s.prim);
-        self.bsdf_of(&m, s.front_face, self.albedo_of(&m, s.uv))
+        self.bsdf_of(&m, s.front_face, self.albedo_of(&m, s))
     }
 
     /// The BSDF of material `m` at a point whose albedo is known (a G-buffer keeps it, a
@@ -170,20 +170,19 @@ impl<'a> SceneBuffers<'a> {
         }
     }
 
-    /// Diffuse albedo at a surface point: the material's texture at the point's texture
-    /// coordinates, or its constant `Kd`.
+    /// Diffuse albedo at a surface point (see `albedo_of`).
     pub fn albedo(&self, s: &SurfaceHit) -> Vec3 {
-        self.albedo_of(&self.material_of(s.prim), s.uv)
+        self.albedo_of(&self.material_of(s.prim), s)
     }
 
-    /// Diffuse albedo of material `m` at texture coordinates `uv`: its colour, times its
-    /// texture's when it has one.
-    pub fn albedo_of(&self, m: &Material, uv: Vec2) -> Vec3 {
+    /// Diffuse albedo of material `m` at surface point `s`: its colour, times the point's
+    /// vertex colour, times its texture at the point's texture coordinates when it has one.
+    pub fn albedo_of(&self, m: &Material, s: &SurfaceHit) -> Vec3 {
+        let albedo = m.albedo() * s.colour;
         if m.albedo_texture == INVALID {
-            m.albedo()
+            albedo
         } else {
-            m.albedo()
-                * sample_bilinear(self.textures, self.texels, m.albedo_texture, uv).truncate()
+            albedo * sample_bilinear(self.textures, self.texels, m.albedo_texture, s.uv).truncate()
         }
     }
 }
@@ -511,6 +510,8 @@ pub struct SurfaceHit {
     /// BSDF's cosines and sampling use it.
     pub ns: Vec3,
     pub uv: Vec2,
+    /// The interpolated vertex colour (white without one): it multiplies the albedo.
+    pub colour: Vec3,
     pub front_face: bool,
     pub prim: u32,
 }
@@ -523,6 +524,7 @@ impl SurfaceHit {
             n,
             ns: n,
             uv: Vec2::ZERO,
+            colour: Vec3::ONE,
             front_face,
             prim,
         }
@@ -576,6 +578,9 @@ pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
         }
         if a.flags & SHADING_UVS != 0 {
             s.uv = a.uv(0) * b0 + a.uv(1) * b1 + a.uv(2) * b2;
+        }
+        if a.flags & SHADING_COLOURS != 0 {
+            s.colour = a.colour(0) * b0 + a.colour(1) * b1 + a.colour(2) * b2;
         }
     }
     s

@@ -164,20 +164,23 @@ impl Material {
     }
 }
 
-/// Per-vertex shading attributes of a triangle (OBJ `vn`/`vt`): vertex k's normal is
-/// `normals[3k..3k+3]` and its texture coordinates `uvs[2k..2k+2]`; `flags` says which
-/// of the two the file gave (`SHADING_NORMALS`, `SHADING_UVS`).
+/// Per-vertex shading attributes of a triangle (OBJ `vn`/`vt`, vertex colours): vertex k's
+/// normal is `normals[3k..3k+3]`, its texture coordinates `uvs[2k..2k+2]` and its colour
+/// `colours[k]` (linear RGB as an RGBE word, see `texture::rgbe_to_linear`); `flags` says
+/// which of them the file gave (`SHADING_NORMALS`, `SHADING_UVS`, `SHADING_COLOURS`).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
 pub struct TriangleShading {
     pub normals: [f32; 9],
     pub uvs: [f32; 6],
+    pub colours: [u32; 3],
     pub flags: u32,
 }
 
 pub const SHADING_NORMALS: u32 = 1;
 pub const SHADING_UVS: u32 = 2;
+pub const SHADING_COLOURS: u32 = 4;
 
 impl TriangleShading {
     pub fn normal(&self, k: usize) -> Vec3 {
@@ -189,6 +192,9 @@ impl TriangleShading {
     }
     pub fn uv(&self, k: usize) -> crate::glam::Vec2 {
         crate::glam::Vec2::new(self.uvs[2 * k], self.uvs[2 * k + 1])
+    }
+    pub fn colour(&self, k: usize) -> Vec3 {
+        crate::texture::rgbe_to_linear(self.colours[k]).truncate()
     }
 }
 
@@ -359,7 +365,7 @@ const _: () = {
     assert!(core::mem::size_of::<FrameParams>() == 272);
     assert!(core::mem::size_of::<GBufferTexel>() == 48);
     assert!(core::mem::size_of::<Light>() == 16);
-    assert!(core::mem::size_of::<TriangleShading>() == 64);
+    assert!(core::mem::size_of::<TriangleShading>() == 76);
     assert!(core::mem::size_of::<TextureInfo>() == 16);
     assert!(core::mem::size_of::<FrameParams>().is_multiple_of(16));
 };

@@ -261,7 +261,7 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
             // Untextured too (see `Scene::plain_materials`): no texture lookup's registers.
             Bsdf::diffuse(material.albedo())
         } else {
-            scene.bsdf_of(&material, s.front_face, scene.albedo_of(&material, s.uv))
+            scene.bsdf_of(&material, s.front_face, scene.albedo_of(&material, &s))
         };
         let wo = -st.ray.dir;
         // A delta BSDF has nothing for a light sample to find: its bounce finds the light.
