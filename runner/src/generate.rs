@@ -743,6 +743,20 @@ mod tests {
         for name in SUITE {
             assert!(builtin(name).is_some(), "{name} is a built-in scene");
         }
+        // The suite's timings in the README refer to these very scenes: a changed
+        // generator is a new suite (re-measure, then update these).
+        let middle_vertex = |g: Generated| g.triangles[g.triangles.len() / 2].p0;
+        assert_eq!(
+            middle_vertex(rocks(50_000)),
+            [20.163225, 0.81437194, 20.32913]
+        );
+        assert_eq!(middle_vertex(shell(50_000)), [0.0, 1.0, 0.0]);
+        assert_eq!(
+            middle_vertex(spheres(50_000)),
+            [-21.031097, 0.50747395, -15.870229]
+        );
+        assert_eq!(middle_vertex(city(50_000)), [9.460201, 0.0, -122.29478]);
+        assert_eq!(middle_vertex(grass(50_000)), [2.5779943, 0.0, -4.9087815]);
     }
 
     #[test]
