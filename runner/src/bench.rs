@@ -34,6 +34,9 @@ pub struct BenchReport {
     pub pass_ms: Vec<f64>,
     /// ReSTIR: median ms of each pass kind per frame.
     pub breakdown: Vec<(&'static str, f64)>,
+    /// Nodes visited and triangles tested per traversal (ray), counted by the CPU backend
+    /// under the `traversal-stats` feature.
+    pub per_ray: Option<(f64, f64)>,
 }
 
 fn min(v: &[f64]) -> f64 {
@@ -110,6 +113,12 @@ impl BenchReport {
             let _ = writeln!(s, "  {name:<12} {ms:.3} ms (median per frame)");
         }
         let _ = writeln!(s, "rays/s         {}", with_unit(self.rays_per_second()));
+        if let Some((nodes, triangles)) = self.per_ray {
+            let _ = writeln!(
+                s,
+                "per ray        {nodes:.1} nodes visited, {triangles:.1} triangles tested"
+            );
+        }
         s
     }
 
@@ -192,6 +201,8 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
             break;
         }
     }
+    #[cfg(feature = "traversal-stats")]
+    kernels::bvh::stats::take();
     for _ in 0..args.runs {
         let stats = frame(backend.as_mut(), k, &params)?;
         frame_ms.push(stats.pass_ms.iter().sum());
@@ -208,6 +219,13 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
             }
         }
     }
+    #[cfg(feature = "traversal-stats")]
+    let per_ray = {
+        let (rays, nodes, triangles) = kernels::bvh::stats::take();
+        (rays > 0).then(|| (nodes as f64 / rays as f64, triangles as f64 / rays as f64))
+    };
+    #[cfg(not(feature = "traversal-stats"))]
+    let per_ray = None;
     // Rays of the last run (the count restarts with each run's clear).
     let rays_per_frame = backend.rays_traced()?;
     let breakdown = per_pass
@@ -233,6 +251,7 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
         frame_ms,
         pass_ms,
         breakdown,
+        per_ray,
     })
 }
 

@@ -235,6 +235,34 @@ pub fn brute_force_any_hit(
     false
 }
 
+/// What the traversal did, counted on the host under the `traversal-stats` feature (never
+/// in SPIR-V: kernels read no globals). The CPU backend runs the GPU's traversal over the
+/// same BVH, so its counts per ray describe the GPU's work too.
+#[cfg(all(feature = "traversal-stats", not(target_arch = "spirv")))]
+pub mod stats {
+    use core::sync::atomic::{AtomicU64, Ordering::Relaxed};
+    pub static TRAVERSALS: AtomicU64 = AtomicU64::new(0);
+    pub static NODES: AtomicU64 = AtomicU64::new(0);
+    pub static TRIANGLES: AtomicU64 = AtomicU64::new(0);
+
+    /// (traversals, nodes visited, triangles tested) since the last call.
+    pub fn take() -> (u64, u64, u64) {
+        (
+            TRAVERSALS.swap(0, Relaxed),
+            NODES.swap(0, Relaxed),
+            TRIANGLES.swap(0, Relaxed),
+        )
+    }
+}
+
+/// Add one to a `stats` counter (nothing without the feature, and never on the GPU).
+macro_rules! count {
+    ($counter:ident) => {
+        #[cfg(all(feature = "traversal-stats", not(target_arch = "spirv")))]
+        stats::$counter.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
+    };
+}
+
 /// Test triangles `first .. first + count` against the ray, shrinking `hit.t`.
 /// Returns true when `any` is set and something was hit (the caller stops).
 fn test_leaf<const PLAIN: bool>(
@@ -248,6 +276,7 @@ fn test_leaf<const PLAIN: bool>(
 ) -> bool {
     let mut i = first;
     while i < first + count {
+        count!(TRIANGLES);
         let tri = triangles[i as usize];
         if let Some((t, b1, b2)) = tester.intersect(&tri, 0.0, hit.t) {
             if PLAIN || cutouts.solid(&tri, b1, b2) {
@@ -449,6 +478,7 @@ pub fn cwbvh_traverse<const PLAIN: bool>(
     if nodes.is_empty() {
         return hit;
     }
+    count!(TRAVERSALS);
     let oct_inv = cwbvh_octant_inv(ray.dir);
     let mut stack_base = [0u32; CWBVH_STACK];
     let mut stack_bits = [0u32; CWBVH_STACK];
@@ -472,6 +502,7 @@ pub fn cwbvh_traverse<const PLAIN: bool>(
                 stack_bits[sp] = group_bits;
                 sp += 1;
             }
+            count!(NODES);
             let node = nodes[child as usize];
             let hits = cwbvh_node_hits(&node, ray.origin, inv_dir, oct_inv, hit.t);
             group_base = node.child_base_idx;
