@@ -6,17 +6,22 @@ use crate::error::Result;
 use crate::integrator::Integrator;
 use crate::options::{SceneOptions, UpAxis};
 
-/// The fuzzing harness: bytes → OBJ (and MTL after the first 0xFF byte) → scene and BVH →
-/// a 4×4 CPU render with NEE (or AO when there are no emitters). Bad input must come back
-/// as an `Err`, never a panic, a hang or a non-finite pixel.
+/// The fuzzing harness: bytes → a PLY file (when they begin with `ply`) or OBJ (and MTL
+/// after the first 0xFF byte) → scene and BVH → a 4×4 CPU render with NEE (or AO when there
+/// are no emitters). Bad input must come back as an `Err`, never a panic, a hang or a
+/// non-finite pixel.
 pub fn load_and_render_bytes(data: &[u8]) -> Result<crate::output::Image> {
-    let (obj, mtl) = match data.iter().position(|&b| b == 0xff) {
-        Some(i) => (&data[..i], Some(&data[i + 1..])),
-        None => (data, None),
+    let scene = if data.starts_with(b"ply") {
+        crate::ply_scene::parse_ply_bytes("fuzz.ply", data.to_vec())?
+    } else {
+        let (obj, mtl) = match data.iter().position(|&b| b == 0xff) {
+            Some(i) => (&data[..i], Some(&data[i + 1..])),
+            None => (data, None),
+        };
+        let obj = String::from_utf8_lossy(obj);
+        let mtl = mtl.map(String::from_utf8_lossy);
+        crate::scene::parse_obj_text("fuzz.obj", &obj, mtl.as_deref())?
     };
-    let obj = String::from_utf8_lossy(obj);
-    let mtl = mtl.map(String::from_utf8_lossy);
-    let scene = crate::scene::parse_obj_text("fuzz.obj", &obj, mtl.as_deref())?;
     let args = SceneOptions {
         scene: None,
         width: 4,

@@ -81,6 +81,11 @@ pub fn load(path: &Path) -> Result<Scene> {
         Ok(b) => b,
         Err(e) => bail!("cannot read scene '{name}': {e}"),
     };
+    parse_ply_bytes(&name, bytes)
+}
+
+/// A PLY file's bytes (named `name` in messages) as a scene.
+pub fn parse_ply_bytes(name: &str, bytes: Vec<u8>) -> Result<Scene> {
     let parser = ply_rs_bw::parser::Parser::<ply_rs_bw::ply::DefaultElement>::new();
     let ply = parser
         .read_ply(&mut std::io::Cursor::new(bytes))

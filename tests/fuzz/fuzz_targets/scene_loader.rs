@@ -1,4 +1,4 @@
-//! OBJ + MTL bytes → scene → BVH → a tiny CPU render. Errors are fine; panics, hangs and
+//! PLY, or OBJ + MTL, bytes → scene → BVH → a tiny CPU render. Errors are fine; panics, hangs and
 //! non-finite pixels are bugs. Crashing inputs go to tests/fuzz/regressions/, which
 //! tests/fuzz_regressions.rs replays in CI.
 #![no_main]
