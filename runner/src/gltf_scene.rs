@@ -102,8 +102,28 @@ pub fn load(path: &Path) -> Result<Scene> {
         &format!("scene '{name}'"),
         (md.len() as f64 * crate::memory::BYTES_PER_OBJ_BYTE) as u64,
     )?;
-    let (doc, buffers, images) =
+    let imported =
         gltf::import(path).map_err(|e| Error(format!("cannot load scene '{name}': {e}")))?;
+    from_import(&name, imported)
+}
+
+/// A glTF file's bytes (named `name` in messages; .glb, or .gltf whose buffers and images
+/// are embedded as data URIs) as a scene.
+pub fn parse_gltf_bytes(name: &str, bytes: &[u8]) -> Result<Scene> {
+    let imported =
+        gltf::import_slice(bytes).map_err(|e| Error(format!("cannot load scene '{name}': {e}")))?;
+    from_import(name, imported)
+}
+
+/// The scene of an imported glTF document, its buffers and its images.
+fn from_import(
+    name: &str,
+    (doc, buffers, images): (
+        gltf::Document,
+        Vec<gltf::buffer::Data>,
+        Vec<gltf::image::Data>,
+    ),
+) -> Result<Scene> {
     let mut warnings = Vec::new();
     let mut attributes = SurfaceAttributes::default();
 
