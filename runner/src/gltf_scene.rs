@@ -102,45 +102,45 @@ pub fn load(path: &Path) -> Result<Scene> {
         &format!("scene '{name}'"),
         (md.len() as f64 * crate::memory::BYTES_PER_OBJ_BYTE) as u64,
     )?;
-    let imported = guarded_import(&name, || gltf::import(path))?;
-    from_import(&name, imported)
+    guarded(&name, || from_import(&name, gltf::import(path)))
 }
 
 /// A glTF file's bytes (named `name` in messages; .glb, or .gltf whose buffers and images
 /// are embedded as data URIs) as a scene.
 pub fn parse_gltf_bytes(name: &str, bytes: &[u8]) -> Result<Scene> {
-    let imported = guarded_import(name, || gltf::import_slice(bytes))?;
-    from_import(name, imported)
+    guarded(name, || from_import(name, gltf::import_slice(bytes)))
 }
 
-/// Run a gltf import, its errors and its panics alike one `error:` for this file. gltf 1.4
-/// validates with unchecked indices: a POSITION attribute naming an accessor the file does
-/// not define panics inside gltf-json (found by the fuzzer). The panic hook is silenced
-/// meanwhile (the library's message is not ours to print); loading runs on one thread.
-fn guarded_import<T>(name: &str, import: impl FnOnce() -> gltf::Result<T>) -> Result<T> {
+/// Load a glTF, the gltf library's panics one `error:` for this file like its errors. gltf
+/// 1.4 validates with unchecked indices (a POSITION naming an accessor the file does not
+/// define panics in gltf-json) and its readers panic on accessor types the specification
+/// does not allow (a COLOR_0 of bytes as scalars): both found by the fuzzer. The panic hook
+/// is silenced meanwhile (the library's message is not ours to print); loading runs on
+/// one thread.
+fn guarded(name: &str, load: impl FnOnce() -> Result<Scene>) -> Result<Scene> {
     let hook = std::panic::take_hook();
     std::panic::set_hook(Box::new(|_| {}));
-    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(import));
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(load));
     std::panic::set_hook(hook);
-    match result {
-        Ok(Ok(imported)) => Ok(imported),
-        Ok(Err(e)) => Err(Error(format!("cannot load scene '{name}': {e}"))),
-        Err(_) => Err(Error(format!(
-            "cannot load scene '{name}': it refers to an accessor, buffer or other item it does \
-             not define (the gltf library failed validating it)"
-        ))),
-    }
+    result.unwrap_or_else(|_| {
+        Err(Error(format!(
+            "cannot load scene '{name}': it is inconsistent (an item it does not define, or an \
+             accessor of a type its use does not allow)"
+        )))
+    })
 }
 
+/// What gltf's import returns: the document, its buffers and its images.
+type Imported = (
+    gltf::Document,
+    Vec<gltf::buffer::Data>,
+    Vec<gltf::image::Data>,
+);
+
 /// The scene of an imported glTF document, its buffers and its images.
-fn from_import(
-    name: &str,
-    (doc, buffers, images): (
-        gltf::Document,
-        Vec<gltf::buffer::Data>,
-        Vec<gltf::image::Data>,
-    ),
-) -> Result<Scene> {
+fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
+    let (doc, buffers, images) =
+        imported.map_err(|e| Error(format!("cannot load scene '{name}': {e}")))?;
     let mut warnings = Vec::new();
     let mut attributes = SurfaceAttributes::default();
 
