@@ -108,15 +108,13 @@ pub fn shares(
 
 /// Emitted power of each kind (luminance; constant factors that all share dropped).
 fn power(scene: &SceneBuffers, params: &FrameParams, radius: f32) -> [f32; 3] {
-    // A Lambertian triangle emits π L A.
+    // A Lambertian triangle emits π L A (`lights::power` is L A).
     let triangles: f32 = scene
         .lights
         .iter()
         .map(|l| {
-            let t = scene.triangles[l.triangle as usize];
             core::f32::consts::PI
-                * luminance(Vec3::from(scene.materials[t.material as usize].emission))
-                * t.area()
+                * crate::lights::power(&scene.triangles[l.triangle as usize], scene.materials)
         })
         .sum();
     // An infinite light delivers π R² ∫ L dω through the scene's bounding disk.
@@ -129,8 +127,7 @@ fn power(scene: &SceneBuffers, params: &FrameParams, radius: f32) -> [f32; 3] {
             env += luminance(kernels::env::escaped_radiance(scene, &no_sun(params), dir)) / pdf;
         }
     }
-    let sun_solid_angle = 2.0 * core::f32::consts::PI * (1.0 - params.sun_cos_max);
-    let sun = luminance(Vec3::from(params.sun_radiance)) * sun_solid_angle;
+    let sun = luminance(Vec3::from(params.sun_radiance)) * kernels::env::sun_solid_angle(params);
     [triangles, disk * env / POWER_SAMPLES as f32, disk * sun]
 }
 
@@ -183,10 +180,9 @@ fn seen(scene: &SceneBuffers, params: &FrameParams) -> [f32; 3] {
                     // moments: measured from the same samples, a rare bright sample would
                     // divide itself away.
                     let half = (PILOT_SAMPLES / 2) as f64;
-                    if !v.is_finite() {
-                    } else if i % 2 == 0 {
+                    if v.is_finite() && i % 2 == 0 {
                         pixel_mean[kind] += v / half;
-                    } else {
+                    } else if v.is_finite() {
                         pixel_second[kind] += v * v / half;
                     }
                 }

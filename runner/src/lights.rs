@@ -6,7 +6,7 @@ use kernels::types::{Light, Material, Triangle, INVALID};
 
 /// Power of an emissive triangle up to a constant: luminance of Ke times area (a
 /// Lambertian emitter radiates π · Le · area).
-fn power(tri: &Triangle, materials: &[Material]) -> f32 {
+pub fn power(tri: &Triangle, materials: &[Material]) -> f32 {
     luminance(Vec3::from(materials[tri.material as usize].emission)) * tri.area()
 }
 

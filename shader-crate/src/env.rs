@@ -144,7 +144,7 @@ pub fn unsampled_radiance(params: &FrameParams) -> Vec3 {
 }
 
 /// Solid angle of the sun's disk.
-fn sun_solid_angle(params: &FrameParams) -> f32 {
+pub fn sun_solid_angle(params: &FrameParams) -> f32 {
     2.0 * PI * (1.0 - params.sun_cos_max)
 }
 
