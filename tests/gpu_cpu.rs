@@ -151,9 +151,9 @@ fn path_integrators_gpu_match_cpu() {
 
 #[test]
 fn textures_and_vertex_normals_gpu_match_cpu() {
-    // A textured floor with a different normal at each corner (interpolated across it) and
-    // a checkered cut-out mask, under an emitter and an environment map with a sun: the
-    // texel buffer, the bilinear lookup, sRGB and RGBE decoding, shading normals, the mask
+    // A textured floor with a different normal at each corner (interpolated across it), a
+    // normal map bending it further and a checkered cut-out mask, under an emitter and an environment map with a sun: the
+    // texel buffer, the bilinear lookup, sRGB, linear and RGBE decoding, shading normals, the mask
     // test inside traversal and the map's importance sampling (NEE picks it half the time;
     // RIS and ReSTIR hold its directions in reservoirs) run on both sides.
     let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("gpu_cpu_surfaces");
@@ -179,9 +179,22 @@ fn textures_and_vertex_normals_gpu_match_cpu() {
         .unwrap()
         .save(dir.join("checker.png"))
         .unwrap();
+    // A normal map of bumps leaning up to ~27° every way (linear bytes, z leading).
+    let bumps: Vec<u8> = (0..8u32 * 8)
+        .flat_map(|i| {
+            let (x, y) = ((i % 8) as f32 / 7.0 - 0.5, (i / 8) as f32 / 7.0 - 0.5);
+            let m = glam::Vec3::new(x, -y, 1.0).normalize();
+            let byte = |c: f32| ((c * 0.5 + 0.5) * 255.0).round() as u8;
+            [byte(m.x), byte(m.y), byte(m.z), 255]
+        })
+        .collect();
+    image::RgbaImage::from_raw(8, 8, bumps)
+        .unwrap()
+        .save(dir.join("bumps.png"))
+        .unwrap();
     std::fs::write(
         dir.join("s.mtl"),
-        "newmtl floor\nKd 1 1 1\nmap_Kd noise.png\nmap_d checker.png\nnewmtl light\nKd 0 0 0\nKe 20 20 20\n",
+        "newmtl floor\nKd 1 1 1\nmap_Kd noise.png\nmap_d checker.png\nnorm bumps.png\nnewmtl light\nKd 0 0 0\nKe 20 20 20\n",
     )
     .unwrap();
     std::fs::write(

@@ -1,7 +1,7 @@
 //! glTF 2.0 scenes (`.gltf` with external or embedded buffers and images, `.glb`) through
 //! the `gltf` crate: the default scene's nodes with their transforms, triangle primitives
 //! with normals and texture coordinates, materials mapped onto our BSDF family, base
-//! colour textures, and the first camera as the default view.
+//! colour and normal textures, and the first camera as the default view.
 //!
 //! Material mapping (the metallic-roughness model; α = roughness²):
 //! - `KHR_materials_transmission` > 0: a dielectric of index `KHR_materials_ior` (1.5);
@@ -146,6 +146,7 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
 
     // Images → textures, on first use by a base colour.
     let mut texture_of_image: Vec<Option<Option<u32>>> = vec![None; images.len()];
+    let mut normal_map_of_image: Vec<Option<Option<u32>>> = vec![None; images.len()];
     let mut materials: Vec<Material> = Vec::new();
     let mut ignored: Vec<&str> = Vec::new();
     for m in doc.materials() {
@@ -190,8 +191,31 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                 ignored.push("texture coordinate sets other than 0");
             }
         }
+        if let Some(normal) = m.normal_texture() {
+            let image = normal.texture().source().index();
+            let slot = *normal_map_of_image[image].get_or_insert_with(|| {
+                match rgba8(&images[image]) {
+                    Some(rgba) => Some(crate::textures::add_normal_map(&mut attributes, &rgba)),
+                    None => {
+                        warnings.push(format!(
+                            "'{name}': image {image} is not 8-bit ({:?}); its normal texture is ignored",
+                            images[image].format
+                        ));
+                        None
+                    }
+                }
+            });
+            if let Some(texture) = slot {
+                mat.normal_texture = texture;
+                mat.normal_scale = Some(normal.scale())
+                    .filter(|s| s.is_finite())
+                    .unwrap_or(1.0);
+            }
+            if normal.tex_coord() != 0 {
+                ignored.push("texture coordinate sets other than 0");
+            }
+        }
         for (what, present) in [
-            ("normal textures", m.normal_texture().is_some()),
             (
                 "metallic-roughness textures",
                 pbr.metallic_roughness_texture().is_some(),

@@ -126,14 +126,16 @@ impl SurfaceAttributes {
             );
         }
         let texture_ok = |k: u32| k == invalid || (k as usize) < self.textures.len();
-        if let Some(m) = materials
-            .iter()
-            .find(|m| !texture_ok(m.albedo_texture) || !texture_ok(m.opacity_texture))
-        {
+        if let Some(m) = materials.iter().find(|m| {
+            !texture_ok(m.albedo_texture)
+                || !texture_ok(m.opacity_texture)
+                || !texture_ok(m.normal_texture)
+        }) {
             bail!(
-                "material refers to texture {} or {} of {}",
+                "material refers to texture {}, {} or {} of {}",
                 m.albedo_texture,
                 m.opacity_texture,
+                m.normal_texture,
                 self.textures.len()
             );
         }
@@ -267,6 +269,7 @@ impl Scene {
             m.kind == kernels::bsdf::BSDF_DIFFUSE
                 && m.albedo_texture == invalid
                 && m.opacity_texture == invalid
+                && m.normal_texture == invalid
         }) && self
             .attributes
             .shading
@@ -653,6 +656,40 @@ fn parse_obj(
                         });
                         material.opacity_texture = index.unwrap_or(kernels::types::INVALID);
                     }
+                    // `norm` (the PBR extension) is a normal map; `map_Bump`/`bump` one too
+                    // when its texels say so (Blender writes normal maps there).
+                    let (statement, key) = match m.unknown_param.get("norm") {
+                        Some(norm) => (Some(norm.as_str()), "norm"),
+                        None => (m.normal_texture.as_deref(), "map_Bump"),
+                    };
+                    let file = statement.map(crate::textures::map_file_name);
+                    if let (Some(statement), Some(file)) = (statement, file.filter(|f| !f.is_empty())) {
+                        let entry = format!("{file}\0normal");
+                        let index = *loaded.entry(entry).or_insert_with(|| match load_texture(&file) {
+                            Ok(image) if key == "norm" || crate::textures::is_normal_map(&image) => {
+                                Some(crate::textures::add_normal_map(&mut attributes, &image))
+                            }
+                            Ok(_) => {
+                                warnings.push(format!(
+                                    "texture '{file}' ({key} of material '{}') is a height map; bump mapping is not supported yet, ignored",
+                                    m.name
+                                ));
+                                None
+                            }
+                            Err(why) => {
+                                warnings.push(format!(
+                                    "texture '{file}' ({key} of material '{}') not loaded: {why}; its normals stay unbent",
+                                    m.name
+                                ));
+                                None
+                            }
+                        });
+                        if let Some(index) = index {
+                            material.normal_texture = index;
+                            material.normal_scale =
+                                crate::textures::bump_multiplier(statement).unwrap_or(1.0);
+                        }
+                    }
                     material
                 })
                 .collect()
@@ -835,7 +872,6 @@ fn ignored_mtl_keys(m: &tobj::Material) -> Vec<&'static str> {
     for (key, present) in [
         ("map_Ks", m.specular_texture.is_some()),
         ("map_Ns", m.shininess_texture.is_some()),
-        ("map_Bump/norm", m.normal_texture.is_some()),
         ("map_Ka", m.ambient_texture.is_some()),
     ] {
         if present {

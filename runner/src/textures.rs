@@ -81,7 +81,6 @@ pub fn decode(path: &Path) -> Result<image::RgbaImage, String> {
     Ok(image.to_rgba8())
 }
 
-/// Append a decoded texture to the texel buffer; its index in the texture table.
 /// A cut-out mask (MTL `map_d`) as the kernels read it, in the alpha channel: the image's
 /// own alpha where it has one (a PNG with transparency), else its grey level (a black and
 /// white mask; the format stores d in [0, 1], not an sRGB colour).
@@ -94,7 +93,47 @@ pub fn cutout_mask(mut image: image::RgbaImage) -> image::RgbaImage {
     image
 }
 
+/// Append a decoded colour texture to the texel buffer; its index in the texture table.
 pub fn add(attributes: &mut SurfaceAttributes, image: &image::RgbaImage) -> u32 {
+    add_as(attributes, image, kernels::types::TEXTURE_SRGB8)
+}
+
+/// Append a normal map (its bytes are directions, read without sRGB decoding).
+pub fn add_normal_map(attributes: &mut SurfaceAttributes, image: &image::RgbaImage) -> u32 {
+    add_as(attributes, image, kernels::types::TEXTURE_LINEAR8)
+}
+
+/// Whether an image is a tangent-space normal map rather than a height (bump) map: MTL's
+/// `map_Bump` names either (Blender writes its normal maps there). A normal map's texels
+/// decode (2c − 1) to unit vectors whose z leads (they lean less than 45° from the
+/// surface's normal); a height map is grey, where no component leads.
+pub fn is_normal_map(image: &image::RgbaImage) -> bool {
+    /// Share of texels that must look like normals, and how far from unit length they may be.
+    const SHARE: f64 = 0.9;
+    const LENGTH_TOLERANCE: f32 = 0.15;
+    let normal_like = image
+        .pixels()
+        .filter(|p| {
+            let m = [p[0], p[1], p[2]].map(|c| c as f32 / 255.0 * 2.0 - 1.0);
+            let length = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
+            (length - 1.0).abs() < LENGTH_TOLERANCE && m[2] > m[0].abs().max(m[1].abs())
+        })
+        .count();
+    normal_like as f64 >= SHARE * (image.width() as f64 * image.height() as f64).max(1.0)
+}
+
+/// The `-bm` value of an MTL map statement (its bump multiplier), if it has one.
+pub fn bump_multiplier(statement: &str) -> Option<f32> {
+    let words: Vec<&str> = statement.split_whitespace().collect();
+    let at = words.iter().position(|w| *w == "-bm")?;
+    words
+        .get(at + 1)?
+        .parse::<f32>()
+        .ok()
+        .filter(|v| v.is_finite())
+}
+
+fn add_as(attributes: &mut SurfaceAttributes, image: &image::RgbaImage, format: u32) -> u32 {
     let offset = attributes.texels.len() as u32;
     attributes.texels.extend(
         image
@@ -105,7 +144,7 @@ pub fn add(attributes: &mut SurfaceAttributes, image: &image::RgbaImage) -> u32 
         offset,
         width: image.width(),
         height: image.height(),
-        format: kernels::types::TEXTURE_SRGB8,
+        format,
     });
     attributes.textures.len() as u32 - 1
 }
@@ -113,6 +152,21 @@ pub fn add(attributes: &mut SurfaceAttributes, image: &image::RgbaImage) -> u32 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn normal_maps_are_told_from_height_maps() {
+        let flat = image::RgbaImage::from_pixel(4, 4, image::Rgba([128, 128, 255, 255]));
+        assert!(is_normal_map(&flat));
+        let tilted = image::RgbaImage::from_pixel(4, 4, image::Rgba([191, 128, 238, 255]));
+        assert!(is_normal_map(&tilted));
+        // Grey at any level, even where (2c − 1)·√3 is a unit length (c ≈ 201).
+        for level in [90, 128, 201, 255] {
+            let grey = image::RgbaImage::from_pixel(4, 4, image::Rgba([level, level, level, 255]));
+            assert!(!is_normal_map(&grey), "grey {level}");
+        }
+        assert_eq!(bump_multiplier("-bm 0.3 n.png"), Some(0.3));
+        assert_eq!(bump_multiplier("n.png"), None);
+    }
 
     #[test]
     fn map_statements_give_their_file() {

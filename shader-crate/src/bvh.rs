@@ -598,23 +598,84 @@ pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
         let a = scene.shading[tri.shading_index() as usize];
         let (b1, b2) = (hit.b1, hit.b2);
         let b0 = 1.0 - b1 - b2;
+        // The file's normal at the point (interpolated, or the face's), as authored: a
+        // normal map bends it in its own orientation before it is turned to the ray.
+        let mut base = ng;
         if a.flags & SHADING_NORMALS != 0 {
             let m = a.normal(0) * b0 + a.normal(1) * b1 + a.normal(2) * b2;
             let len = m.length();
             if len > 0.0 && len.is_finite() {
-                // Turned to the side the ray arrived on, like `n` (two-sided surfaces).
-                let m = m / len;
-                s.ns = if m.dot(n) < 0.0 { -m } else { m };
+                base = m / len;
             }
         }
+        let mut shading = base;
         if a.flags & SHADING_UVS != 0 {
             s.uv = a.uv(0) * b0 + a.uv(1) * b1 + a.uv(2) * b2;
+            let m = scene.materials[tri.material as usize];
+            if m.normal_texture != INVALID {
+                let texel = sample_bilinear(scene.textures, scene.texels, m.normal_texture, s.uv);
+                shading = normal_mapped(&tri, &a, base, texel.truncate(), m.normal_scale);
+            }
         }
+        // Turned to the side the ray arrived on, like `n` (two-sided surfaces); a map that
+        // bends the normal past the face's horizon is not followed there.
+        let side = if base.dot(n) < 0.0 { -1.0 } else { 1.0 };
+        s.ns = if (shading * side).dot(n) > MIN_SHADING_COSINE {
+            shading * side
+        } else {
+            base * side
+        };
         if a.flags & SHADING_COLOURS != 0 {
             s.colour = a.colour(0) * b0 + a.colour(1) * b1 + a.colour(2) * b2;
         }
     }
     s
+}
+
+/// A shading normal closer than this cosine to the face's plane is not used: a normal map
+/// that bends past the horizon keeps the unmapped normal there.
+const MIN_SHADING_COSINE: f32 = 1e-3;
+
+/// The normal `base` of triangle `tri` bent by a tangent-space normal map texel (each
+/// channel in [0, 1] encoding [−1, 1]; x along increasing u, y along increasing v, z along
+/// `base`; x and y scaled by `scale`). The tangent frame is the triangle's own: dp/du and
+/// dp/dv from its texture coordinates, made orthogonal to `base`, with the handedness of
+/// the mapping (a mirrored texture keeps its bumps). Without a usable mapping (degenerate
+/// texture coordinates, a texel encoding no direction) `base` is kept.
+pub fn normal_mapped(
+    tri: &Triangle,
+    a: &TriangleShading,
+    base: Vec3,
+    texel: Vec3,
+    scale: f32,
+) -> Vec3 {
+    let (p0, p1, p2) = tri.vertices();
+    let (e1, e2) = (p1 - p0, p2 - p0);
+    let (d1, d2) = (a.uv(1) - a.uv(0), a.uv(2) - a.uv(0));
+    let det = d1.x * d2.y - d1.y * d2.x;
+    if det == 0.0 || !det.is_finite() {
+        return base;
+    }
+    let dpdu = (e1 * d2.y - e2 * d1.y) / det;
+    let dpdv = (e2 * d1.x - e1 * d2.x) / det;
+    let t = (dpdu - base * base.dot(dpdu)).normalize_or_zero();
+    if t == Vec3::ZERO {
+        return base;
+    }
+    let handedness = if base.cross(t).dot(dpdv) < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    let b = base.cross(t) * handedness;
+    let m = texel * 2.0 - Vec3::ONE;
+    let bent = t * (m.x * scale) + b * (m.y * scale) + base * m.z;
+    let bent = bent.normalize_or_zero();
+    if bent == Vec3::ZERO || !bent.is_finite() {
+        base
+    } else {
+        bent
+    }
 }
 
 /// Move a ray origin off the surface along the normal by a few ulps of the position
@@ -644,6 +705,43 @@ fn offset_component(p: f32, n: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A triangle in the z = 0 plane (normal +z) with texture coordinates at its corners.
+    fn mapped(uvs: [f32; 6]) -> (Triangle, TriangleShading) {
+        let tri = Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y, 0);
+        let shading = TriangleShading {
+            uvs,
+            flags: crate::types::SHADING_UVS,
+            ..Default::default()
+        };
+        (tri, shading)
+    }
+
+    /// The texel encoding direction m.
+    fn texel(m: Vec3) -> Vec3 {
+        m * 0.5 + Vec3::splat(0.5)
+    }
+
+    #[test]
+    fn normal_maps_lean_along_the_texture_axes_mirrored_or_not() {
+        let lean = Vec3::new(0.6, 0.0, 0.8);
+        // u along +x, v along +y: the map's x is +x.
+        let (tri, a) = mapped([0.0, 0.0, 1.0, 0.0, 0.0, 1.0]);
+        let n = normal_mapped(&tri, &a, Vec3::Z, texel(lean), 1.0);
+        assert!((n - lean).length() < 1e-5, "{n}");
+        let n = normal_mapped(&tri, &a, Vec3::Z, texel(Vec3::new(0.0, 0.6, 0.8)), 1.0);
+        assert!((n - Vec3::new(0.0, 0.6, 0.8)).length() < 1e-5, "{n}");
+        // Mirrored in u (u grows along −x): the map's x leans towards −x, its y still +y.
+        let (tri, a) = mapped([0.0, 0.0, -1.0, 0.0, 0.0, 1.0]);
+        let n = normal_mapped(&tri, &a, Vec3::Z, texel(lean), 1.0);
+        assert!((n - Vec3::new(-0.6, 0.0, 0.8)).length() < 1e-5, "{n}");
+        let n = normal_mapped(&tri, &a, Vec3::Z, texel(Vec3::new(0.0, 0.6, 0.8)), 1.0);
+        assert!((n - Vec3::new(0.0, 0.6, 0.8)).length() < 1e-5, "{n}");
+        // Scale 0 flattens the map; degenerate texture coordinates keep the normal.
+        assert!((normal_mapped(&tri, &a, Vec3::Z, texel(lean), 0.0) - Vec3::Z).length() < 1e-6);
+        let (tri, a) = mapped([0.5; 6]);
+        assert_eq!(normal_mapped(&tri, &a, Vec3::Z, texel(lean), 1.0), Vec3::Z);
+    }
 
     #[test]
     fn offset_moves_to_the_normal_side_at_every_scale() {

@@ -5,7 +5,7 @@
 use spirv_std::num_traits::Float;
 
 use crate::glam::{Vec2, Vec4};
-use crate::types::{TextureInfo, TEXTURE_RGBE};
+use crate::types::{TextureInfo, TEXTURE_LINEAR8, TEXTURE_RGBE};
 
 /// sRGB transfer function → linear (IEC 61966-2-1).
 pub fn srgb_to_linear(c: f32) -> f32 {
@@ -40,6 +40,9 @@ fn texel(texels: &[u32], info: &TextureInfo, x: u32, y: u32) -> Vec4 {
         return rgbe_to_linear(w);
     }
     let byte = |shift: u32| ((w >> shift) & 0xff) as f32 / 255.0;
+    if info.format == TEXTURE_LINEAR8 {
+        return Vec4::new(byte(0), byte(8), byte(16), byte(24));
+    }
     Vec4::new(
         srgb_to_linear(byte(0)),
         srgb_to_linear(byte(8)),

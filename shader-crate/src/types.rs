@@ -105,7 +105,11 @@ pub struct Material {
     /// A cut-out mask (MTL `map_d`): texture whose alpha below ½ makes the surface a hole
     /// for every ray (tested during traversal); INVALID: opaque.
     pub opacity_texture: u32,
-    pub _pad: [u32; 2],
+    /// A tangent-space normal map (glTF `normalTexture`, MTL `norm`; stored linear, see
+    /// `TEXTURE_LINEAR8`) bending the shading normal; INVALID: none.
+    pub normal_texture: u32,
+    /// The normal map's strength: its x and y are scaled by this (glTF's `scale`).
+    pub normal_scale: f32,
 }
 
 /// Index of refraction of glass, and of coats, when a file gives none.
@@ -123,7 +127,8 @@ impl Material {
             alpha: 1.0,
             ior: DEFAULT_IOR,
             opacity_texture: INVALID,
-            _pad: [0; 2],
+            normal_texture: INVALID,
+            normal_scale: 1.0,
         }
     }
     /// A metal: reflectance `specular` at normal incidence, GGX roughness `alpha` (0: mirror).
@@ -215,6 +220,8 @@ pub const TEXTURE_SRGB8: u32 = 0;
 /// Radiance's shared-exponent RGBE (red in the low byte, the exponent in the high one):
 /// linear HDR colour in 32 bits, for environment maps.
 pub const TEXTURE_RGBE: u32 = 1;
+/// RGBA, 8 bits each, read as stored (data, not colour: normal maps).
+pub const TEXTURE_LINEAR8: u32 = 2;
 
 /// One emissive triangle in the light table, with its entry of the alias table that picks
 /// lights in proportion to their power (Walker/Vose): slot `i` keeps itself with
