@@ -152,7 +152,8 @@ fn path_integrators_gpu_match_cpu() {
 #[test]
 fn textures_and_vertex_normals_gpu_match_cpu() {
     // A textured floor with a different normal at each corner (interpolated across it), a
-    // normal map bending it further and a checkered cut-out mask, under an emitter and an environment map with a sun: the
+    // normal map bending it further and a checkered cut-out mask, an emitter whose emission
+    // is textured, under an emitter and an environment map with a sun: the
     // texel buffer, the bilinear lookup, sRGB, linear and RGBE decoding, shading normals, the mask
     // test inside traversal and the map's importance sampling (NEE picks it half the time;
     // RIS and ReSTIR hold its directions in reservoirs) run on both sides.
@@ -194,7 +195,7 @@ fn textures_and_vertex_normals_gpu_match_cpu() {
         .unwrap();
     std::fs::write(
         dir.join("s.mtl"),
-        "newmtl floor\nKd 1 1 1\nmap_Kd noise.png\nmap_d checker.png\nnorm bumps.png\nnewmtl light\nKd 0 0 0\nKe 20 20 20\n",
+        "newmtl floor\nKd 1 1 1\nmap_Kd noise.png\nmap_d checker.png\nnorm bumps.png\nnewmtl light\nKd 0 0 0\nKe 20 20 20\nmap_Ke noise.png\n",
     )
     .unwrap();
     std::fs::write(
@@ -203,7 +204,7 @@ fn textures_and_vertex_normals_gpu_match_cpu() {
          v -0.3 1 -0.3\nv 0.3 1 -0.3\nv 0.3 1 0.3\nv -0.3 1 0.3\n\
          vt 0 0\nvt 0 2\nvt 2 2\nvt 2 0\n\
          vn 0.3 1 0\nvn 0 1 0.3\nvn -0.3 1 0\nvn 0 1 -0.3\n\
-         usemtl floor\nf 1/1/1 2/2/2 3/3/3 4/4/4\nusemtl light\nf 5 6 7 8\n",
+         usemtl floor\nf 1/1/1 2/2/2 3/3/3 4/4/4\nusemtl light\nf 5/1 6/2 7/3 8/4\n",
     )
     .unwrap();
     let sky: Vec<image::Rgb<f32>> = (0..16u32 * 32)

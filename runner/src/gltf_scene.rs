@@ -1,17 +1,21 @@
 //! glTF 2.0 scenes (`.gltf` with external or embedded buffers and images, `.glb`) through
 //! the `gltf` crate: the default scene's nodes with their transforms, triangle primitives
 //! with normals and texture coordinates, materials mapped onto our BSDF family, base
-//! colour and normal textures, and the first camera as the default view.
+//! colour, normal, metallic-roughness and emissive textures, and the first camera as the
+//! default view.
 //!
 //! Material mapping (the metallic-roughness model; α = roughness²):
 //! - `KHR_materials_transmission` > 0: a dielectric of index `KHR_materials_ior` (1.5);
 //! - metallic ≥ 0.5: a conductor of reflectance baseColor (a binary choice: no blend);
+//!   with a metallic-roughness texture the choice is made per point (metallic × blue),
+//!   and roughness is roughnessFactor × green there;
 //! - `KHR_materials_specular` with specularFactor 0: Lambertian baseColor;
 //! - otherwise: baseColor under a GGX dielectric coat of index ior (Lambert + GGX specular
 //!   weighted by Fresnel, as the specification's dielectric BRDF).
 //!
-//! Emission = emissiveFactor × `KHR_materials_emissive_strength`, from the front side, and
-//! from both sides when the material is `doubleSided` (the triangle is added flipped too).
+//! baseColor is baseColorFactor × its texture × COLOR_0, for conductors too. Emission =
+//! emissiveFactor × its texture × `KHR_materials_emissive_strength`, from the front side,
+//! and from both sides when the material is `doubleSided` (the triangle is added flipped).
 use std::path::Path;
 
 use glam::{Mat3, Mat4, Vec2, Vec3};
@@ -67,15 +71,22 @@ fn material(m: &gltf::Material) -> Material {
         .unwrap_or(DEFAULT_IOR);
     let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
     let specular = m.specular().map_or(1.0, |s| s.specular_factor());
+    // A metallic-roughness texture decides metal or not per point (`surface_bsdf`): the
+    // material is then its dielectric self, with the base colour kept as reflectance too.
+    let metal_per_point = pbr.metallic_roughness_texture().is_some();
     let mut material = if transmission > 0.0 {
         Material::dielectric(ior, alpha)
-    } else if pbr.metallic_factor() >= 0.5 {
+    } else if pbr.metallic_factor() >= 0.5 && !metal_per_point {
         Material::conductor(base, alpha)
     } else if specular <= 0.0 {
         Material::new(base, Vec3::ZERO)
     } else {
         Material::coated(base, ior, alpha)
     };
+    if transmission <= 0.0 {
+        material.specular = base.to_array();
+        material.metallic = pbr.metallic_factor().clamp(0.0, 1.0);
+    }
     let strength = m.emissive_strength().unwrap_or(1.0);
     let emission = Vec3::from(m.emissive_factor()) * strength;
     if emission.is_finite() {
@@ -146,12 +157,24 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
 
     // Images → textures, on first use by a base colour.
     let mut texture_of_image: Vec<Option<Option<u32>>> = vec![None; images.len()];
-    let mut normal_map_of_image: Vec<Option<Option<u32>>> = vec![None; images.len()];
+    let mut data_of_image: Vec<Option<Option<u32>>> = vec![None; images.len()];
+    let mut invisible: Vec<bool> = Vec::new();
     let mut materials: Vec<Material> = Vec::new();
     let mut ignored: Vec<&str> = Vec::new();
     for m in doc.materials() {
         let mut mat = material(&m);
         let pbr = m.pbr_metallic_roughness();
+        // alphaMode MASK: the base colour's alpha (times its factor) against the cutoff, as
+        // a cut-out mask thresholded per texel. BLEND is drawn the same way at ½ (a path
+        // tracer has no blending order; partial transparency is not kept: one warning).
+        let cutoff = match m.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => None,
+            gltf::material::AlphaMode::Mask => Some(m.alpha_cutoff().unwrap_or(0.5)),
+            gltf::material::AlphaMode::Blend => {
+                ignored.push("alpha mode BLEND drawn as MASK at ½: partial transparency");
+                Some(0.5)
+            }
+        };
         if let Some(info) = pbr.base_color_texture() {
             let image = info.texture().source().index();
             let slot = texture_of_image[image].get_or_insert_with(|| {
@@ -166,46 +189,38 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                     }
                 }
             });
-            // alphaMode MASK: the base colour's alpha (times its factor) against the cutoff,
-            // as a cut-out mask thresholded per texel.
-            if m.alpha_mode() == gltf::material::AlphaMode::Mask {
-                if let Some(rgba) = rgba8(&images[image]) {
-                    let cutoff = m.alpha_cutoff().unwrap_or(0.5);
-                    let factor = pbr.base_color_factor()[3];
-                    let mut mask = rgba;
-                    for p in mask.pixels_mut() {
-                        let solid = p[3] as f32 / 255.0 * factor >= cutoff;
-                        *p = image::Rgba([255, 255, 255, if solid { 255 } else { 0 }]);
-                    }
-                    mat.opacity_texture = crate::textures::add(&mut attributes, &mask);
+            if let (Some(cutoff), Some(rgba)) = (cutoff, rgba8(&images[image])) {
+                let factor = pbr.base_color_factor()[3];
+                let mut mask = rgba;
+                for p in mask.pixels_mut() {
+                    let solid = p[3] as f32 / 255.0 * factor >= cutoff;
+                    *p = image::Rgba([255, 255, 255, if solid { 255 } else { 0 }]);
                 }
+                mat.opacity_texture = crate::textures::add(&mut attributes, &mask);
             }
             if let Some(texture) = *slot {
-                if mat.kind == kernels::bsdf::BSDF_CONDUCTOR {
-                    ignored.push("base colour textures of metals");
-                } else {
-                    mat.albedo_texture = texture;
-                }
+                mat.albedo_texture = texture;
             }
             if info.tex_coord() != 0 {
                 ignored.push("texture coordinate sets other than 0");
             }
         }
-        if let Some(normal) = m.normal_texture() {
-            let image = normal.texture().source().index();
-            let slot = *normal_map_of_image[image].get_or_insert_with(|| {
-                match rgba8(&images[image]) {
-                    Some(rgba) => Some(crate::textures::add_normal_map(&mut attributes, &rgba)),
-                    None => {
-                        warnings.push(format!(
-                            "'{name}': image {image} is not 8-bit ({:?}); its normal texture is ignored",
-                            images[image].format
-                        ));
-                        None
-                    }
+        // Data textures (read linear), each image decoded once.
+        let mut data_texture = |image: usize, what: &str| {
+            *data_of_image[image].get_or_insert_with(|| match rgba8(&images[image]) {
+                Some(rgba) => Some(crate::textures::add_linear(&mut attributes, &rgba)),
+                None => {
+                    warnings.push(format!(
+                        "'{name}': image {image} is not 8-bit ({:?}); its {what} is ignored",
+                        images[image].format
+                    ));
+                    None
                 }
-            });
-            if let Some(texture) = slot {
+            })
+        };
+        if let Some(normal) = m.normal_texture() {
+            if let Some(texture) = data_texture(normal.texture().source().index(), "normal texture")
+            {
                 mat.normal_texture = texture;
                 mat.normal_scale = Some(normal.scale())
                     .filter(|s| s.is_finite())
@@ -215,23 +230,43 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                 ignored.push("texture coordinate sets other than 0");
             }
         }
-        for (what, present) in [
-            (
-                "metallic-roughness textures",
-                pbr.metallic_roughness_texture().is_some(),
-            ),
-            ("emissive textures", m.emissive_texture().is_some()),
-            (
-                "alpha mode BLEND, or MASK without a base colour texture",
-                m.alpha_mode() == gltf::material::AlphaMode::Blend
-                    || (m.alpha_mode() == gltf::material::AlphaMode::Mask
-                        && mat.opacity_texture == kernels::types::INVALID),
-            ),
-        ] {
-            if present {
-                ignored.push(what);
+        if let Some(info) = pbr.metallic_roughness_texture() {
+            let image = info.texture().source().index();
+            if let Some(texture) = data_texture(image, "metallic-roughness texture") {
+                if mat.kind != kernels::bsdf::BSDF_DIELECTRIC {
+                    mat.metal_rough_texture = texture;
+                }
+            }
+            if info.tex_coord() != 0 {
+                ignored.push("texture coordinate sets other than 0");
             }
         }
+        if let Some(info) = m.emissive_texture() {
+            let image = info.texture().source().index();
+            let slot = *texture_of_image[image].get_or_insert_with(|| match rgba8(&images[image]) {
+                Some(rgba) => Some(crate::textures::add(&mut attributes, &rgba)),
+                None => {
+                    warnings.push(format!(
+                        "'{name}': image {image} is not 8-bit ({:?}); its emissive texture is ignored",
+                        images[image].format
+                    ));
+                    None
+                }
+            });
+            if let Some(texture) = slot {
+                mat.emission_texture = texture;
+            }
+            if info.tex_coord() != 0 {
+                ignored.push("texture coordinate sets other than 0");
+            }
+        }
+        // Without a texture the factor's alpha alone decides: solid, or a hole everywhere
+        // (its primitives are left out).
+        invisible.push(
+            cutoff.is_some_and(|c| {
+                pbr.base_color_texture().is_none() && pbr.base_color_factor()[3] < c
+            }),
+        );
         materials.push(mat);
     }
     // The specification's default material (white, metallic 1, roughness 1), added after
@@ -301,6 +336,9 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                 None => (0..positions.len() as u32).collect(),
             };
             let material_index = prim.material().index();
+            if material_index.is_some_and(|i| invisible[i]) {
+                continue;
+            }
             let material = material_index.map_or(default_material, |i| i as u32);
             uses_default |= material_index.is_none();
             let two_sided_emitter =

@@ -112,10 +112,7 @@ fn power(scene: &SceneBuffers, params: &FrameParams, radius: f32) -> [f32; 3] {
     let triangles: f32 = scene
         .lights
         .iter()
-        .map(|l| {
-            core::f32::consts::PI
-                * crate::lights::power(&scene.triangles[l.triangle as usize], scene.materials)
-        })
+        .map(|l| core::f32::consts::PI * crate::lights::power(scene, l.triangle))
         .sum();
     // An infinite light delivers π R² ∫ L dω through the scene's bounding disk.
     let disk = core::f32::consts::PI * radius * radius;
@@ -156,7 +153,7 @@ fn seen(scene: &SceneBuffers, params: &FrameParams) -> [f32; 3] {
             }
             let s = surface_hit(scene, &ray, &hit);
             let material = scene.material_of(hit.prim);
-            let bsdf = scene.bsdf_of(&material, s.front_face, scene.albedo_of(&material, &s));
+            let bsdf = scene.surface_bsdf(&material, &s);
             if bsdf.is_delta() {
                 continue;
             }

@@ -1,18 +1,55 @@
 //! The light table: every emissive triangle, with an alias table (Vose 1991) that picks
 //! lights in proportion to their emitted power in O(1).
 use glam::Vec3;
+use kernels::bvh::SceneBuffers;
 use kernels::math::luminance;
 use kernels::types::{Light, Material, Triangle, INVALID};
 
-/// Power of an emissive triangle up to a constant: luminance of Ke times area (a
-/// Lambertian emitter radiates π · Le · area).
-pub fn power(tri: &Triangle, materials: &[Material]) -> f32 {
-    luminance(Vec3::from(materials[tri.material as usize].emission)) * tri.area()
+use crate::scene::SurfaceAttributes;
+
+/// Points per side of the grid on which a textured emitter's radiance is averaged.
+const POWER_GRID: usize = 4;
+/// A textured emitter's power is at least this share of its factor's: a bright spot
+/// between the grid's points must still be sampled (a selection probability of 0 would
+/// lose its light).
+const MIN_TEXTURED_POWER: f32 = 0.01;
+
+/// Power of emissive triangle `triangle` up to a constant: the luminance of its emitted
+/// radiance averaged over the triangle, times its area (a Lambertian emitter radiates
+/// π · Le · area). Textured emission is averaged on a grid of points.
+pub fn power(scene: &SceneBuffers, triangle: u32) -> f32 {
+    let tri = &scene.triangles[triangle as usize];
+    let m = &scene.materials[tri.material as usize];
+    let factor = luminance(Vec3::from(m.emission));
+    if m.emission_texture == INVALID {
+        return factor * tri.area();
+    }
+    let mut sum = 0.0;
+    for i in 0..POWER_GRID {
+        for j in 0..POWER_GRID {
+            let (u, v) = (
+                (i as f32 + 0.5) / POWER_GRID as f32,
+                (j as f32 + 0.5) / POWER_GRID as f32,
+            );
+            let (b1, b2) = if u + v > 1.0 {
+                (1.0 - u, 1.0 - v)
+            } else {
+                (u, v)
+            };
+            sum += luminance(scene.emission_at(triangle, b1, b2));
+        }
+    }
+    let mean = sum / (POWER_GRID * POWER_GRID) as f32;
+    mean.max(MIN_TEXTURED_POWER * factor) * tri.area()
 }
 
 /// Build the light table for `triangles` and write each emitter's table index into its
 /// `light` field (INVALID elsewhere).
-pub fn build_light_table(triangles: &mut [Triangle], materials: &[Material]) -> Vec<Light> {
+pub fn build_light_table(
+    triangles: &mut [Triangle],
+    materials: &[Material],
+    attributes: &SurfaceAttributes,
+) -> Vec<Light> {
     let mut lights: Vec<Light> = Vec::new();
     for (i, t) in triangles.iter_mut().enumerate() {
         t.light = INVALID;
@@ -24,14 +61,24 @@ pub fn build_light_table(triangles: &mut [Triangle], materials: &[Material]) -> 
             });
         }
     }
+    let view = SceneBuffers {
+        triangles,
+        materials,
+        nodes: &[],
+        lights: &[],
+        shading: &attributes.shading,
+        textures: &attributes.textures,
+        texels: &attributes.texels,
+        env_distribution: &[],
+    };
+    let powers: Vec<f64> = lights
+        .iter()
+        .map(|l| power(&view, l.triangle) as f64)
+        .collect();
     let n = lights.len();
     if n == 0 {
         return lights;
     }
-    let powers: Vec<f64> = lights
-        .iter()
-        .map(|l| power(&triangles[l.triangle as usize], materials) as f64)
-        .collect();
     let total: f64 = powers.iter().sum();
     let pdfs: Vec<f64> = if total > 0.0 && total.is_finite() {
         powers.iter().map(|p| p / total).collect()

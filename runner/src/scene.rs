@@ -222,7 +222,7 @@ impl Scene {
             );
         }
         let mut triangles = crate::accel::reorder(&triangles, &bvh.order);
-        let lights = crate::lights::build_light_table(&mut triangles, &materials);
+        let lights = crate::lights::build_light_table(&mut triangles, &materials, &attributes);
         Ok(Self {
             triangles,
             nodes: bvh.nodes,
@@ -600,7 +600,7 @@ fn parse_obj(
         Ok(mtls) => {
             warnings.extend(unknown_material_warnings(name, text, &mtls));
             // What no material kind here reads: one warning per key, with a count.
-            let mut ignored: Vec<(&str, usize)> = Vec::new();
+            let mut ignored: Vec<(String, usize)> = Vec::new();
             for key in mtls.iter().flat_map(ignored_mtl_keys) {
                 match ignored.iter_mut().find(|(k, _)| *k == key) {
                     Some((_, n)) => *n += 1,
@@ -667,7 +667,7 @@ fn parse_obj(
                         let entry = format!("{file}\0normal");
                         let index = *loaded.entry(entry).or_insert_with(|| match load_texture(&file) {
                             Ok(image) if key == "norm" || crate::textures::is_normal_map(&image) => {
-                                Some(crate::textures::add_normal_map(&mut attributes, &image))
+                                Some(crate::textures::add_linear(&mut attributes, &image))
                             }
                             Ok(_) => {
                                 warnings.push(format!(
@@ -688,6 +688,26 @@ fn parse_obj(
                             material.normal_texture = index;
                             material.normal_scale =
                                 crate::textures::bump_multiplier(statement).unwrap_or(1.0);
+                        }
+                    }
+                    // map_Ke: emission = Ke (1 when not given) × the texture.
+                    let glow = m.unknown_param.get("map_Ke").map(|s| crate::textures::map_file_name(s));
+                    if let Some(file) = glow.filter(|f| !f.is_empty()) {
+                        let index = *loaded.entry(file.clone()).or_insert_with(|| match load_texture(&file) {
+                            Ok(image) => Some(crate::textures::add(&mut attributes, &image)),
+                            Err(why) => {
+                                warnings.push(format!(
+                                    "texture '{file}' (map_Ke of material '{}') not loaded: {why}; using its Ke",
+                                    m.name
+                                ));
+                                None
+                            }
+                        });
+                        if let Some(index) = index {
+                            material.emission_texture = index;
+                            if m.emissive.is_none() {
+                                material.emission = [1.0; 3];
+                            }
                         }
                     }
                     material
@@ -865,22 +885,47 @@ pub fn alpha_from_phong(ns: f32) -> f32 {
     (2.0 / (ns.max(0.0) + 2.0)).sqrt()
 }
 
+/// MTL statements tobj does not know that the materials read (the PBR extension's and
+/// the normal and emission maps); every other unknown statement is one warning.
+const READ_MTL_PARAMS: [&str; 4] = ["Pm", "Pr", "norm", "map_Ke"];
+
+/// Whether an MTL statement tobj does not read only states the format's default (`Tr 0`:
+/// opaque, `Tf 1 1 1`: no filter; 3ds Max writes both into every material): nothing is
+/// lost by not reading it, so it is no warning.
+fn states_the_default(key: &str, value: &str) -> bool {
+    let numbers: Vec<f32> = value
+        .split_whitespace()
+        .filter_map(|w| w.parse().ok())
+        .collect();
+    match key {
+        "Tr" => numbers == [0.0],
+        "Tf" => !numbers.is_empty() && numbers.iter().all(|&x| x == 1.0),
+        _ => false,
+    }
+}
+
 /// MTL statements the loader reads no meaning from (each one named once per scene when a
 /// material uses it).
-fn ignored_mtl_keys(m: &tobj::Material) -> Vec<&'static str> {
-    let mut keys = Vec::new();
+fn ignored_mtl_keys(m: &tobj::Material) -> Vec<String> {
+    let mut keys: Vec<String> = m
+        .unknown_param
+        .iter()
+        .filter(|(k, v)| !READ_MTL_PARAMS.contains(&k.as_str()) && !states_the_default(k, v))
+        .map(|(k, _)| k.clone())
+        .collect();
+    keys.sort_unstable(); // a hash map's order would change the warnings' from run to run
     for (key, present) in [
         ("map_Ks", m.specular_texture.is_some()),
         ("map_Ns", m.shininess_texture.is_some()),
         ("map_Ka", m.ambient_texture.is_some()),
     ] {
         if present {
-            keys.push(key);
+            keys.push(key.to_string());
         }
     }
     let glass = matches!(m.illumination_model, Some(4 | 6 | 7 | 9));
     if m.dissolve.is_some_and(|d| d < 1.0) && !glass {
-        keys.push("d < 1 (transparency without a glass illum)");
+        keys.push("d < 1 (transparency without a glass illum)".to_string());
     }
     keys
 }

@@ -98,8 +98,9 @@ pub fn add(attributes: &mut SurfaceAttributes, image: &image::RgbaImage) -> u32 
     add_as(attributes, image, kernels::types::TEXTURE_SRGB8)
 }
 
-/// Append a normal map (its bytes are directions, read without sRGB decoding).
-pub fn add_normal_map(attributes: &mut SurfaceAttributes, image: &image::RgbaImage) -> u32 {
+/// Append a data texture (normal or metallic-roughness map: its bytes are read as they
+/// are, without sRGB decoding).
+pub fn add_linear(attributes: &mut SurfaceAttributes, image: &image::RgbaImage) -> u32 {
     add_as(attributes, image, kernels::types::TEXTURE_LINEAR8)
 }
 

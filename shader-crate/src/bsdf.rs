@@ -167,6 +167,27 @@ impl Bsdf {
         }
     }
 
+    /// The one colour a BSDF of its kind reads: a conductor's reflectance, else the
+    /// albedo (a dielectric reads neither). What a G-buffer keeps.
+    pub fn colour(&self) -> Vec3 {
+        if self.kind == BSDF_CONDUCTOR {
+            self.specular
+        } else {
+            self.albedo
+        }
+    }
+
+    /// A BSDF of `kind` whose `colour` is `colour`.
+    pub fn with_colour(kind: u32, colour: Vec3, alpha: f32, eta: f32) -> Self {
+        Self {
+            kind,
+            albedo: colour,
+            specular: colour,
+            alpha,
+            eta,
+        }
+    }
+
     fn smooth(&self) -> bool {
         self.alpha < SMOOTH_ALPHA
     }

@@ -1,7 +1,7 @@
 //! Scene queries: closest hit and any hit (shadow/AO rays) by brute force, over a binary
 //! BVH, or over a compressed 8-wide BVH (CWBVH). `SceneBuffers` uses the traversal picked by cargo
 //! feature; every variant answers the same question, and the tests hold them to it.
-use crate::bsdf::{Bsdf, BSDF_DIELECTRIC};
+use crate::bsdf::{Bsdf, BSDF_CONDUCTOR, BSDF_DIELECTRIC};
 use crate::glam::Vec2;
 use crate::glam::Vec3;
 use crate::intersect::{intersect_aabb, Hit, Ray, TriangleTester};
@@ -10,8 +10,8 @@ use crate::sampling::orthonormal_basis;
 use crate::texture::sample_bilinear;
 use crate::types::cwbvh_meta::{self, FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
 use crate::types::{
-    Bvh2Node, CwBvhNode, Light, Material, TextureInfo, Triangle, TriangleShading, INVALID,
-    SHADING_COLOURS, SHADING_NORMALS, SHADING_UVS,
+    Bvh2Node, CwBvhNode, GBufferTexel, Light, Material, TextureInfo, Triangle, TriangleShading,
+    INVALID, METAL_THRESHOLD, SHADING_COLOURS, SHADING_NORMALS, SHADING_UVS,
 };
 
 /// The node type of the traversal compiled in.
@@ -147,43 +147,66 @@ impl<'a> SceneBuffers<'a> {
         self.materials[self.triangles[prim as usize].material as usize]
     }
 
-    /// The BSDF at a surface point. A dielectric's relative index depends on the side the
-    /// ray arrived on: the material's index entering through the front, its inverse leaving.
+    /// The BSDF at a surface point.
     pub fn bsdf(&self, s: &SurfaceHit) -> Bsdf {
-        let m = self.material_of(s.prim);
-        self.bsdf_of(&m, s.front_face, self.albedo_of(&m, s))
+        self.surface_bsdf(&self.material_of(s.prim), s)
     }
 
-    /// The BSDF of material `m` at a point whose albedo is known (a G-buffer keeps it, a
-    /// path has just looked it up).
-    pub fn bsdf_of(&self, m: &Material, front_face: bool, albedo: Vec3) -> Bsdf {
-        Bsdf {
-            kind: m.kind,
-            albedo,
-            specular: vec3(m.specular),
-            alpha: m.alpha,
-            eta: if m.kind == BSDF_DIELECTRIC && !front_face {
-                1.0 / m.ior
-            } else {
-                m.ior
-            },
-        }
-    }
-
-    /// Diffuse albedo at a surface point (see `albedo_of`).
-    pub fn albedo(&self, s: &SurfaceHit) -> Vec3 {
-        self.albedo_of(&self.material_of(s.prim), s)
-    }
-
-    /// Diffuse albedo of material `m` at surface point `s`: its colour, times the point's
-    /// vertex colour, times its texture at the point's texture coordinates when it has one.
-    pub fn albedo_of(&self, m: &Material, s: &SurfaceHit) -> Vec3 {
-        let albedo = m.albedo() * s.colour;
-        if m.albedo_texture == INVALID {
-            albedo
+    /// The BSDF of material `m` at surface point `s`, its textures applied: colours times
+    /// the vertex colour and the base colour texture; a metallic-roughness texture's
+    /// roughness and metalness (a metal texel is a conductor of the base colour). A
+    /// dielectric's relative index depends on the side the ray arrived on: the material's
+    /// index entering through the front, its inverse leaving.
+    pub fn surface_bsdf(&self, m: &Material, s: &SurfaceHit) -> Bsdf {
+        let texture = if m.albedo_texture == INVALID {
+            s.colour
         } else {
-            albedo * sample_bilinear(self.textures, self.texels, m.albedo_texture, s.uv).truncate()
+            s.colour
+                * sample_bilinear(self.textures, self.texels, m.albedo_texture, s.uv).truncate()
+        };
+        let mut kind = m.kind;
+        let mut alpha = m.alpha;
+        if m.metal_rough_texture != INVALID {
+            let t = sample_bilinear(self.textures, self.texels, m.metal_rough_texture, s.uv);
+            alpha *= t.y * t.y;
+            if m.metallic * t.z >= METAL_THRESHOLD {
+                kind = BSDF_CONDUCTOR;
+            }
         }
+        let colour = if kind == BSDF_CONDUCTOR {
+            m.specular
+        } else {
+            m.albedo
+        };
+        Bsdf::with_colour(kind, vec3(colour) * texture, alpha, eta_of(m, s.front_face))
+    }
+
+    /// The BSDF a G-buffer texel keeps (see `GBufferTexel`).
+    pub fn gbuffer_bsdf(&self, g: &GBufferTexel) -> Bsdf {
+        let m = self.material_of(g.prim);
+        Bsdf::with_colour(g.kind(), vec3(g.colour), g.alpha(), eta_of(&m, g.front()))
+    }
+
+    /// Emitted radiance of triangle `prim` at barycentrics (b1, b2), towards its front.
+    pub fn emission_at(&self, prim: u32, b1: f32, b2: f32) -> Vec3 {
+        let tri = self.triangles[prim as usize];
+        let m = self.materials[tri.material as usize];
+        if m.emission_texture == INVALID || tri.shading_index() == INVALID {
+            return m.emission();
+        }
+        let a = self.shading[tri.shading_index() as usize];
+        let uv = a.uv(0) * (1.0 - b1 - b2) + a.uv(1) * b1 + a.uv(2) * b2;
+        m.emission()
+            * sample_bilinear(self.textures, self.texels, m.emission_texture, uv).truncate()
+    }
+}
+
+/// Relative index of refraction of material `m` for a ray arriving on its front or back.
+fn eta_of(m: &Material, front_face: bool) -> f32 {
+    if m.kind == BSDF_DIELECTRIC && !front_face {
+        1.0 / m.ior
+    } else {
+        m.ior
     }
 }
 

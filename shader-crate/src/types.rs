@@ -84,6 +84,18 @@ impl Triangle {
         let (p0, p1, p2) = self.vertices();
         p0 * (1.0 - b1 - b2) + p1 * b1 + p2 * b2
     }
+    /// Barycentrics (b1, b2) of a point `p` on the triangle (the inverse of `point`).
+    pub fn barycentrics(&self, p: Vec3) -> (f32, f32) {
+        let (p0, p1, p2) = self.vertices();
+        let (e1, e2, d) = (p1 - p0, p2 - p0, p - p0);
+        let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+        let (d1, d2) = (d.dot(e1), d.dot(e2));
+        let det = d11 * d22 - d12 * d12;
+        if det == 0.0 || !det.is_finite() {
+            return (0.0, 0.0);
+        }
+        ((d22 * d1 - d12 * d2) / det, (d11 * d2 - d12 * d1) / det)
+    }
 }
 
 /// A surface's BSDF (`kind`: one of `bsdf::BSDF_*`) and its one-sided emitted radiance
@@ -110,7 +122,20 @@ pub struct Material {
     pub normal_texture: u32,
     /// The normal map's strength: its x and y are scaled by this (glTF's `scale`).
     pub normal_scale: f32,
+    /// glTF's metallic-roughness texture (linear; green: roughness, blue: metalness, each
+    /// times its factor: α = `alpha` × green², metalness = `metallic` × blue); INVALID: none.
+    pub metal_rough_texture: u32,
+    /// glTF's metallic factor, read with `metal_rough_texture`: where metalness ≥ ½ the
+    /// surface is a conductor of reflectance `specular` (the base colour) × textures.
+    pub metallic: f32,
+    /// Emitted radiance is `emission` × this texture (glTF `emissiveTexture`, MTL `map_Ke`;
+    /// sRGB colour); INVALID: `emission` alone.
+    pub emission_texture: u32,
+    pub _pad: u32,
 }
+
+/// Metalness from which a texel of a metallic-roughness texture is a conductor.
+pub const METAL_THRESHOLD: f32 = 0.5;
 
 /// Index of refraction of glass, and of coats, when a file gives none.
 pub const DEFAULT_IOR: f32 = 1.5;
@@ -129,6 +154,10 @@ impl Material {
             opacity_texture: INVALID,
             normal_texture: INVALID,
             normal_scale: 1.0,
+            metal_rough_texture: INVALID,
+            metallic: 0.0,
+            emission_texture: INVALID,
+            _pad: 0,
         }
     }
     /// A metal: reflectance `specular` at normal incidence, GGX roughness `alpha` (0: mirror).
@@ -350,7 +379,7 @@ pub const RESTIR_UNBIASED: u32 = 8;
 
 /// What the primary-hit pass leaves for the later ReSTIR passes. `prim == INVALID` marks a
 /// pixel whose camera ray left the scene (`n` then holds the ray's direction, for the
-/// environment); `front` is 1 when it hit an emitter's front.
+/// environment).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
@@ -360,14 +389,34 @@ pub struct GBufferTexel {
     /// Shading normal (the G-buffer keeps no geometric one).
     pub n: [f32; 3],
     pub prim: u32,
-    pub albedo: [f32; 3],
-    pub front: u32,
+    /// The BSDF's colour, textures applied (`Bsdf::colour`).
+    pub colour: [f32; 3],
+    /// Whether the ray hit the front side (bit 0), the BSDF's kind (bits 1–2) and its α as
+    /// a 16-bit fraction (bits 16–31): what textures may change per point.
+    pub surface: u32,
+}
+
+impl GBufferTexel {
+    pub fn front(&self) -> bool {
+        self.surface & 1 != 0
+    }
+    pub fn kind(&self) -> u32 {
+        (self.surface >> 1) & 3
+    }
+    pub fn alpha(&self) -> f32 {
+        (self.surface >> 16) as f32 / 65535.0
+    }
+    /// Pack `surface` (α is in [0, 1]: roughness²).
+    pub fn pack_surface(front: bool, kind: u32, alpha: f32) -> u32 {
+        let a = (alpha.clamp(0.0, 1.0) * 65535.0 + 0.5) as u32;
+        front as u32 | (kind & 3) << 1 | a << 16
+    }
 }
 
 #[cfg(not(target_arch = "spirv"))]
 const _: () = {
     assert!(core::mem::size_of::<Triangle>() == 48);
-    assert!(core::mem::size_of::<Material>() == 64);
+    assert!(core::mem::size_of::<Material>() == 80);
     assert!(core::mem::size_of::<Camera>() == 64);
     assert!(core::mem::size_of::<FrameParams>() == 272);
     assert!(core::mem::size_of::<GBufferTexel>() == 48);

@@ -252,7 +252,7 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
             } else {
                 0.0 // NEE and RIS already counted it as direct light
             };
-            radiance += st.throughput * material.emission() * weight;
+            radiance += st.throughput * scene.emission_at(hit.prim, hit.b1, hit.b2) * weight;
         }
         if st.depth == params.max_depth {
             break;
@@ -261,7 +261,7 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
             // Untextured too (see `Scene::plain_materials`): no texture lookup's registers.
             Bsdf::diffuse(material.albedo())
         } else {
-            scene.bsdf_of(&material, s.front_face, scene.albedo_of(&material, &s))
+            scene.surface_bsdf(&material, &s)
         };
         let wo = -st.ray.dir;
         // A delta BSDF has nothing for a light sample to find: its bounce finds the light.

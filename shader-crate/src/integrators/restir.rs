@@ -100,13 +100,14 @@ pub fn primary_hit(
         };
     }
     let s = surface_hit(scene, &ray, &hit);
+    let bsdf = scene.bsdf(&s);
     GBufferTexel {
         p: s.p.to_array(),
         depth: hit.t,
         n: s.ns.to_array(),
         prim: hit.prim,
-        albedo: scene.albedo(&s).to_array(),
-        front: s.front_face as u32,
+        colour: bsdf.colour().to_array(),
+        surface: GBufferTexel::pack_surface(s.front_face, bsdf.kind, bsdf.alpha),
     }
 }
 
@@ -157,7 +158,7 @@ fn shading_point(scene: &SceneBuffers, g: &GBufferTexel, eye: Vec3) -> ShadingPo
         p,
         n: vec3(g.n),
         wo: (eye - p).normalize(),
-        bsdf: scene.bsdf_of(&scene.material_of(g.prim), g.front != 0, vec3(g.albedo)),
+        bsdf: scene.gbuffer_bsdf(g),
     }
 }
 
@@ -455,8 +456,14 @@ fn shaded_radiance(
         return escaped_radiance(scene, params, vec3(g.n));
     }
     let material = scene.material_of(g.prim);
-    let mut radiance = if g.front != 0 {
-        material.emission()
+    let mut radiance = if g.front() && material.is_emissive() {
+        // The G-buffer keeps the point, not its barycentrics: found again for a texture.
+        let (b1, b2) = if material.emission_texture == INVALID {
+            (0.0, 0.0)
+        } else {
+            scene.triangles[g.prim as usize].barycentrics(vec3(g.p))
+        };
+        scene.emission_at(g.prim, b1, b2)
     } else {
         Vec3::ZERO
     };
@@ -478,7 +485,7 @@ fn shaded_radiance(
     let unsampled_sky = unsampled_radiance(params) != Vec3::ZERO;
     if params.max_depth > 2 || unsampled_sky || sp.bsdf.kind != BSDF_DIFFUSE {
         let mut rng = pass_rng(params, pixel, STREAM_SHADE);
-        let s = SurfaceHit::flat(sp.p, sp.n, g.front != 0, g.prim);
+        let s = SurfaceHit::flat(sp.p, sp.n, g.front(), g.prim);
         let mut state = PathState::camera(crate::intersect::Ray::new(eye, -sp.wo));
         if state.bounce(&s, &sp.bsdf, params, &mut rng) {
             // The reservoir sampled the map and the sun here: what the bounce finds of

@@ -24,7 +24,7 @@ pub fn light_point(scene: &SceneBuffers, triangle: u32, b1: f32, b2: f32) -> (Ve
     (
         tri.point(b1, b2),
         tri.normal(),
-        scene.materials[tri.material as usize].emission(),
+        scene.emission_at(triangle, b1, b2),
     )
 }
 

@@ -1,0 +1,270 @@
+//! Textures that change the material point by point: glTF's metallic-roughness texture
+//! (roughness in green, metalness in blue, each times its factor), base colour textures on
+//! metals, and emission textures (glTF `emissiveTexture`, MTL `map_Ke`) seen directly and
+//! as light for next-event estimation, RIS and ReSTIR. Each is checked against the same
+//! scene written without the texture, with the factors the texel stands for.
+mod common;
+
+use common::{render_cpu, tmp_dir as dir};
+use glam::Vec3;
+
+/// A 2x2 floor at y = 0 seen from above under a sun 45° up and a dim sky.
+const FLOOR_VIEW: [&str; 24] = [
+    "--eye",
+    "0,3,0",
+    "--target",
+    "0,0,0",
+    "--up",
+    "0,0,-1",
+    "--fov",
+    "30",
+    "--width",
+    "24",
+    "--height",
+    "24",
+    "--spp",
+    "64",
+    "--integrator",
+    "mis",
+    "--sky",
+    "0.1,0.1,0.1",
+    "--sun",
+    "1,1,0",
+    "--max-depth",
+    "2",
+    "--seed",
+    "3",
+];
+
+/// Mean radiance of the image.
+fn mean(image: &runner::output::Image) -> Vec3 {
+    image.mean()
+}
+
+fn png(d: &std::path::Path, name: &str, texel: [u8; 4]) {
+    image::RgbaImage::from_pixel(2, 2, image::Rgba(texel))
+        .save(d.join(name))
+        .unwrap();
+}
+
+/// A glTF floor with texture coordinates whose material is `material` (JSON) and whose
+/// images are the PNG files `images`, rendered with `view`.
+fn gltf_floor(d: &std::path::Path, material: &str, images: &[&str], view: &[&str]) -> Vec3 {
+    let corners = [
+        [-1.0f32, 0.0, -1.0],
+        [-1.0, 0.0, 1.0],
+        [1.0, 0.0, 1.0],
+        [1.0, 0.0, -1.0],
+    ];
+    let mut buffer: Vec<u8> = corners
+        .iter()
+        .flatten()
+        .flat_map(|x| x.to_le_bytes())
+        .collect();
+    for c in corners {
+        buffer.extend(
+            [(c[0] + 1.0) / 2.0, (c[2] + 1.0) / 2.0]
+                .iter()
+                .flat_map(|x| x.to_le_bytes()),
+        );
+    }
+    buffer.extend([0u32, 1, 2, 0, 2, 3].iter().flat_map(|x| x.to_le_bytes()));
+    std::fs::write(d.join("floor.bin"), &buffer).unwrap();
+    let textures: Vec<String> = (0..images.len())
+        .map(|i| format!(r#"{{"source":{i}}}"#))
+        .collect();
+    let images: Vec<String> = images
+        .iter()
+        .map(|f| format!(r#"{{"uri":"{f}"}}"#))
+        .collect();
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"material":0}}]}}],
+"materials":[{material}],"textures":[{}],"images":[{}],
+"accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,-1],"max":[1,0,1]}},
+{{"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"}},{{"bufferView":2,"componentType":5125,"count":6,"type":"SCALAR"}}],
+"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":32}},{{"buffer":0,"byteOffset":80,"byteLength":24}}],
+"buffers":[{{"byteLength":{},"uri":"floor.bin"}}]}}"#,
+        textures.join(","),
+        images.join(","),
+        buffer.len()
+    );
+    std::fs::write(d.join("floor.gltf"), json).unwrap();
+    let (image, stderr) = render_cpu(&d.join("floor.gltf"), &d.join("floor.exr"), view);
+    assert!(!stderr.contains("not supported"), "{stderr}");
+    mean(&image)
+}
+
+fn close(got: Vec3, expected: Vec3, what: &str) {
+    let scale = expected.max_element().max(1e-3);
+    assert!(
+        (got - expected).abs().max_element() < 0.01 * scale,
+        "{what}: {got} vs {expected}"
+    );
+}
+
+#[test]
+fn metallic_roughness_textures_set_metalness_and_roughness_per_point() {
+    let d = dir("textured_materials_mr");
+    let base = r#""baseColorFactor":[0.9,0.6,0.3,1]"#;
+    let with_texture = |texel: [u8; 4], metallic: f32, roughness: f32| {
+        png(&d, "mr.png", texel);
+        gltf_floor(
+            &d,
+            &format!(
+                r#"{{"pbrMetallicRoughness":{{{base},"metallicFactor":{metallic},"roughnessFactor":{roughness},"metallicRoughnessTexture":{{"index":0}}}}}}"#
+            ),
+            &["mr.png"],
+            &FLOOR_VIEW,
+        )
+    };
+    let plain = |metallic: f32, roughness: f32| {
+        gltf_floor(
+            &d,
+            &format!(
+                r#"{{"pbrMetallicRoughness":{{{base},"metallicFactor":{metallic},"roughnessFactor":{roughness}}}}}"#
+            ),
+            &[],
+            &FLOOR_VIEW,
+        )
+    };
+    // Metal where blue × metallicFactor ≥ ½, at roughness green × roughnessFactor.
+    let rough_metal = plain(1.0, 0.6);
+    close(
+        with_texture([0, 255, 255, 255], 1.0, 0.6),
+        rough_metal,
+        "rough metal",
+    );
+    close(
+        with_texture([0, 128, 255, 255], 1.0, 1.0),
+        plain(1.0, 128.0 / 255.0),
+        "green is roughness",
+    );
+    // Not metal: blue 0, or blue 1 × a factor under ½.
+    let dielectric = plain(0.0, 0.6);
+    close(
+        with_texture([0, 255, 0, 255], 1.0, 0.6),
+        dielectric,
+        "blue 0",
+    );
+    close(
+        with_texture([0, 255, 255, 255], 0.4, 0.6),
+        dielectric,
+        "factor 0.4",
+    );
+    // The two are far apart, so the comparisons above can tell them.
+    assert!((rough_metal - dielectric).abs().max_element() > 0.1 * dielectric.max_element());
+}
+
+#[test]
+fn base_colour_textures_tint_metals() {
+    let d = dir("textured_materials_metal_colour");
+    png(&d, "red.png", [255, 0, 0, 255]);
+    let textured = gltf_floor(
+        &d,
+        r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.8,0.8,0.8,1],"metallicFactor":1,"roughnessFactor":0.5,"baseColorTexture":{"index":0}}}"#,
+        &["red.png"],
+        &FLOOR_VIEW,
+    );
+    let red = gltf_floor(
+        &d,
+        r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.8,0,0,1],"metallicFactor":1,"roughnessFactor":0.5}}"#,
+        &[],
+        &FLOOR_VIEW,
+    );
+    close(textured, red, "red metal");
+    assert!(red.x > 0.01 && red.x > 2.0 * red.y, "{red}");
+}
+
+/// A floor under a square emitter at y = 1 facing down, as OBJ; the emitter's material is
+/// `light` (MTL lines).
+fn lit_floor(d: &std::path::Path, light: &str) -> std::path::PathBuf {
+    std::fs::write(
+        d.join("s.obj"),
+        "mtllib s.mtl\nv -1 0 -1\nv -1 0 1\nv 1 0 1\nv 1 0 -1\n\
+         v -0.3 1 -0.3\nv 0.3 1 -0.3\nv 0.3 1 0.3\nv -0.3 1 0.3\n\
+         vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+         usemtl floor\nf 1 2 3 4\nusemtl light\nf 5/1 6/2 7/3 8/4\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("s.mtl"),
+        format!("newmtl floor\nKd 0.7 0.7 0.7\nnewmtl light\nKd 0 0 0\n{light}\n"),
+    )
+    .unwrap();
+    d.join("s.obj")
+}
+
+#[test]
+fn emission_textures_light_the_scene_like_their_value() {
+    // Ke 4 × a texture of sRGB (128, 64, 255) against Ke 4 × that colour in linear values,
+    // for every estimator: the light table's power, NEE's and RIS's light samples, ReSTIR's
+    // shading of a seen emitter and of its reservoirs all read the texture.
+    let d = dir("textured_materials_emission");
+    png(&d, "glow.png", [128, 64, 255, 255]);
+    let linear = Vec3::new(128.0, 64.0, 255.0).map(|c| kernels::texture::srgb_to_linear(c / 255.0));
+    let ke = 4.0 * linear;
+    let textured = lit_floor(&d, "Ke 4 4 4\nmap_Ke glow.png");
+    let d2 = dir("textured_materials_emission_plain");
+    let plain = lit_floor(&d2, &format!("Ke {} {} {}", ke.x, ke.y, ke.z));
+    // From the floor's corner, looking up at the emitter's underside and the floor.
+    for integrator in ["pt", "nee", "mis", "ris", "restir"] {
+        let view = [
+            "--eye",
+            "1.8,0.15,1.8",
+            "--target",
+            "0,0.6,0",
+            "--width",
+            "32",
+            "--height",
+            "32",
+            "--spp",
+            "16",
+            "--integrator",
+            integrator,
+            "--max-depth",
+            "3",
+            "--seed",
+            "5",
+        ];
+        let (a, stderr) = render_cpu(&textured, &d.join(format!("{integrator}.exr")), &view);
+        assert!(!stderr.contains("map_Ke"), "{stderr}");
+        let (b, _) = render_cpu(&plain, &d2.join(format!("{integrator}.exr")), &view);
+        // Same seeds, same light table: the same image up to rounding of the emission.
+        let (ma, mb) = (mean(&a), mean(&b));
+        assert!(mb.max_element() > 0.05, "{integrator}: lit");
+        close(ma, mb, integrator);
+        let brightest = |i: &runner::output::Image| {
+            i.pixels
+                .iter()
+                .map(|p| p.max_element())
+                .fold(0.0f32, f32::max)
+        };
+        // The emitter seen directly is Ke × texel.
+        assert!(
+            (brightest(&a) - ke.z).abs() < 0.01 * ke.z,
+            "{integrator}: emitter seen {} vs {}",
+            brightest(&a),
+            ke.z
+        );
+    }
+}
+
+#[test]
+fn mtl_statements_nothing_reads_are_named_once_each() {
+    // Unknown statements are one warning per key with the number of materials; those that
+    // state the format's defaults (3ds Max writes `Tr 0` and `Tf 1 1 1` everywhere) none.
+    let d = dir("textured_materials_unknown_mtl");
+    let scene = lit_floor(
+        &d,
+        "Tr 0\nTf 1 1 1\nmap_Pr r.png\nnewmtl other\nTf 0.5 0.5 0.5\nmap_Pr r.png",
+    );
+    let view = ["--width", "8", "--height", "8", "--spp", "1"];
+    let (_, stderr) = render_cpu(&scene, &d.join("out.exr"), &view);
+    assert!(
+        stderr.contains("map_Pr in 2 material(s) is not supported yet"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("Tf in 1 material(s)"), "{stderr}");
+    assert!(!stderr.contains("Tr in"), "{stderr}");
+}
