@@ -159,6 +159,7 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
     let mut texture_of_image: Vec<Option<Option<u32>>> = vec![None; images.len()];
     let mut data_of_image: Vec<Option<Option<u32>>> = vec![None; images.len()];
     let mut invisible: Vec<bool> = Vec::new();
+    let mut blended = 0;
     let mut materials: Vec<Material> = Vec::new();
     let mut ignored: Vec<&str> = Vec::new();
     for m in doc.materials() {
@@ -171,7 +172,7 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
             gltf::material::AlphaMode::Opaque => None,
             gltf::material::AlphaMode::Mask => Some(m.alpha_cutoff().unwrap_or(0.5)),
             gltf::material::AlphaMode::Blend => {
-                ignored.push("alpha mode BLEND drawn as MASK at ½: partial transparency");
+                blended += 1;
                 Some(0.5)
             }
         };
@@ -379,6 +380,12 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
     }
     if uses_default {
         materials.push(Material::conductor(Vec3::ONE, 1.0));
+    }
+    if blended > 0 {
+        warnings.push(format!(
+            "'{name}': {blended} material(s) of alpha mode BLEND drawn as MASK at ½ (partial \
+             transparency is not supported yet)"
+        ));
     }
     ignored.sort_unstable();
     let mut kinds = ignored.clone();

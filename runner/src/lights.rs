@@ -36,7 +36,7 @@ pub fn power(scene: &SceneBuffers, triangle: u32) -> f32 {
             } else {
                 (u, v)
             };
-            sum += luminance(scene.emission_at(triangle, b1, b2));
+            sum += luminance(scene.emission_at(tri, b1, b2));
         }
     }
     let mean = sum / (POWER_GRID * POWER_GRID) as f32;

@@ -126,16 +126,13 @@ impl SurfaceAttributes {
             );
         }
         let texture_ok = |k: u32| k == invalid || (k as usize) < self.textures.len();
-        if let Some(m) = materials.iter().find(|m| {
-            !texture_ok(m.albedo_texture)
-                || !texture_ok(m.opacity_texture)
-                || !texture_ok(m.normal_texture)
-        }) {
+        if let Some(m) = materials
+            .iter()
+            .find(|m| m.textures().iter().any(|&k| !texture_ok(k)))
+        {
             bail!(
-                "material refers to texture {}, {} or {} of {}",
-                m.albedo_texture,
-                m.opacity_texture,
-                m.normal_texture,
+                "material refers to textures {:?} of {}",
+                m.textures(),
                 self.textures.len()
             );
         }
@@ -266,10 +263,7 @@ impl Scene {
     pub fn all_diffuse(&self) -> bool {
         let invalid = kernels::types::INVALID;
         self.materials.iter().all(|m| {
-            m.kind == kernels::bsdf::BSDF_DIFFUSE
-                && m.albedo_texture == invalid
-                && m.opacity_texture == invalid
-                && m.normal_texture == invalid
+            m.kind == kernels::bsdf::BSDF_DIFFUSE && m.textures().iter().all(|&t| t == invalid)
         }) && self
             .attributes
             .shading

@@ -187,9 +187,10 @@ impl<'a> SceneBuffers<'a> {
         Bsdf::with_colour(g.kind(), vec3(g.colour), g.alpha(), eta_of(&m, g.front()))
     }
 
-    /// Emitted radiance of triangle `prim` at barycentrics (b1, b2), towards its front.
-    pub fn emission_at(&self, prim: u32, b1: f32, b2: f32) -> Vec3 {
-        let tri = self.triangles[prim as usize];
+    /// Emitted radiance of triangle `tri` at barycentrics (b1, b2), towards its front: its
+    /// material's emission, times its emission texture where it has one and texture
+    /// coordinates.
+    pub fn emission_at(&self, tri: &Triangle, b1: f32, b2: f32) -> Vec3 {
         let m = self.materials[tri.material as usize];
         if m.emission_texture == INVALID || tri.shading_index() == INVALID {
             return m.emission();

@@ -61,7 +61,7 @@ pub fn sample_light(scene: &SceneBuffers, mode: u32, rng: &mut Rng) -> LightSamp
     LightSample {
         p: tri.point(b1, b2),
         n: cross / (2.0 * area),
-        emission: scene.emission_at(triangle, b1, b2),
+        emission: scene.emission_at(&tri, b1, b2),
         pdf_area: selection_pdf(scene.lights, mode, index) / area,
         triangle,
         b1,

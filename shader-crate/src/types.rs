@@ -190,6 +190,16 @@ impl Material {
     pub fn albedo(&self) -> Vec3 {
         vec3(self.albedo)
     }
+    /// Every texture the material refers to (INVALID where it has none of that kind).
+    pub fn textures(&self) -> [u32; 5] {
+        [
+            self.albedo_texture,
+            self.opacity_texture,
+            self.normal_texture,
+            self.metal_rough_texture,
+            self.emission_texture,
+        ]
+    }
     pub fn emission(&self) -> Vec3 {
         vec3(self.emission)
     }

@@ -20,7 +20,7 @@ use crate::lights::{light_pdf_area, power_heuristic, sample_light};
 use crate::math::{vec3, PI};
 use crate::rng::Rng;
 use crate::sampling::local_to_world;
-use crate::types::FrameParams;
+use crate::types::{FrameParams, INVALID};
 
 pub const BSDF: u32 = 0;
 pub const NEE: u32 = 1;
@@ -252,7 +252,13 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
             } else {
                 0.0 // NEE and RIS already counted it as direct light
             };
-            radiance += st.throughput * scene.emission_at(hit.prim, hit.b1, hit.b2) * weight;
+            // Untextured emission needs no second look at the triangle.
+            let le = if ALL_DIFFUSE || material.emission_texture == INVALID {
+                material.emission()
+            } else {
+                scene.emission_at(&scene.triangles[hit.prim as usize], hit.b1, hit.b2)
+            };
+            radiance += st.throughput * le * weight;
         }
         if st.depth == params.max_depth {
             break;

@@ -458,12 +458,13 @@ fn shaded_radiance(
     let material = scene.material_of(g.prim);
     let mut radiance = if g.front() && material.is_emissive() {
         // The G-buffer keeps the point, not its barycentrics: found again for a texture.
-        let (b1, b2) = if material.emission_texture == INVALID {
-            (0.0, 0.0)
+        if material.emission_texture == INVALID {
+            material.emission()
         } else {
-            scene.triangles[g.prim as usize].barycentrics(vec3(g.p))
-        };
-        scene.emission_at(g.prim, b1, b2)
+            let tri = scene.triangles[g.prim as usize];
+            let (b1, b2) = tri.barycentrics(vec3(g.p));
+            scene.emission_at(&tri, b1, b2)
+        }
     } else {
         Vec3::ZERO
     };

@@ -24,7 +24,7 @@ pub fn light_point(scene: &SceneBuffers, triangle: u32, b1: f32, b2: f32) -> (Ve
     (
         tri.point(b1, b2),
         tri.normal(),
-        scene.emission_at(triangle, b1, b2),
+        scene.emission_at(&tri, b1, b2),
     )
 }
 
