@@ -20,8 +20,10 @@ use crate::viewer::ViewArgs;
     long_about = "GPU ray tracer in Rust. Kernels (ambient occlusion, ...) are no_std Rust compiled \
 to SPIR-V by rust-gpu and run through wgpu (Vulkan); the very same functions run on the CPU \
 backend. Scenes are OBJ + MTL (Kd, Ks, Ns, Ni, illum, Pr/Pm and map_Kd map onto a BSDF family \
-of diffuse, metal, glass and coated surfaces; Ke emits from the counter-clockwise front side), \
-glTF 2.0 or PLY; --sky, --env (an HDR map) and --sun light them from outside."
+of diffuse, metal, glass and coated surfaces; Ke and map_Ke emit from the counter-clockwise \
+front side; map_d cuts out, norm or a normal map in map_Bump bends normals), glTF 2.0 (base \
+colour, normal, metallic-roughness and emissive textures) or PLY; --sky, --env (an HDR map) \
+and --sun light them from outside."
 )]
 pub struct Cli {
     #[command(subcommand)]
