@@ -4,40 +4,32 @@
 //! along increasing u, y along increasing v: up the image).
 mod common;
 
-use common::{render_cpu, tmp_dir as dir};
+use common::{floor_view, gltf_floor, render_cpu, strs, tmp_dir as dir};
 use glam::Vec3;
 
-/// A 2x2 floor at y = 0 seen from above (image up = −z), lit only by a sun (`SUN`) up
-/// towards +x and a little −z: direct light only, so a Lambertian floor's radiance is
+/// The floor seen from above (image up = −z), lit only by a sun (`sun()`) up towards +x
+/// and a little −z: direct light only, so a Lambertian floor's radiance is
 /// ∝ max(0, n_s · sun).
-const VIEW: [&str; 24] = [
-    "--eye",
-    "0,3,0",
-    "--target",
-    "0,0,0",
-    "--up",
-    "0,0,-1",
-    "--fov",
-    "30",
-    "--width",
-    "32",
-    "--height",
-    "32",
-    "--spp",
-    "16",
-    "--integrator",
-    "nee",
-    "--sky",
-    "0,0,0",
-    "--sun",
-    "1,1,-0.5",
-    "--max-depth",
-    "2",
-    "--seed",
-    "1",
-];
+fn view() -> Vec<String> {
+    floor_view(
+        32,
+        16,
+        &[
+            "--integrator",
+            "nee",
+            "--sky",
+            "0,0,0",
+            "--sun",
+            "1,1,-0.5",
+            "--max-depth",
+            "2",
+            "--seed",
+            "1",
+        ],
+    )
+}
 
-/// The direction towards the sun of `VIEW`.
+/// The direction towards the sun of `view()`.
 fn sun() -> Vec3 {
     Vec3::new(1.0, 1.0, -0.5).normalize()
 }
@@ -106,7 +98,7 @@ fn a_normal_map_tilts_the_shading_normal_in_the_texture_frame() {
     let sun = sun();
     write_png(&d.join("flat.png"), FLAT);
     let scene = obj_floor(&d, "norm flat.png");
-    let (flat_image, stderr) = render_cpu(&scene, &d.join("flat.exr"), &VIEW);
+    let (flat_image, stderr) = render_cpu(&scene, &d.join("flat.exr"), &strs(&view()));
     assert!(!stderr.contains("not supported"), "{stderr}");
     let flat = middle(&flat_image);
     assert!(flat > 0.0);
@@ -117,7 +109,7 @@ fn a_normal_map_tilts_the_shading_normal_in_the_texture_frame() {
     ] {
         write_png(&d.join("n.png"), texel);
         let scene = obj_floor(&d, "norm n.png");
-        let (image, _) = render_cpu(&scene, &d.join("n.exr"), &VIEW);
+        let (image, _) = render_cpu(&scene, &d.join("n.exr"), &strs(&view()));
         let expected = bent_normal(texel).dot(sun) / bent_normal(FLAT).dot(sun);
         let ratio = middle(&image) / flat;
         assert!(
@@ -134,11 +126,15 @@ fn map_bump_is_a_normal_map_only_when_its_texels_are_normals() {
     let (normal, stderr) = render_cpu(
         &obj_floor(&d, "map_Bump -bm 1 n.png"),
         &d.join("n.exr"),
-        &VIEW,
+        &strs(&view()),
     );
     assert!(!stderr.contains("height map"), "{stderr}");
     write_png(&d.join("flat.png"), FLAT);
-    let (flat, _) = render_cpu(&obj_floor(&d, "norm flat.png"), &d.join("f.exr"), &VIEW);
+    let (flat, _) = render_cpu(
+        &obj_floor(&d, "norm flat.png"),
+        &d.join("f.exr"),
+        &strs(&view()),
+    );
     assert!(
         middle(&normal) > 1.2 * middle(&flat),
         "the map bent nothing"
@@ -146,7 +142,11 @@ fn map_bump_is_a_normal_map_only_when_its_texels_are_normals() {
 
     // A grey height map is not read as normals: one warning, the floor stays flat.
     write_png(&d.join("h.png"), [90, 90, 90]);
-    let (height, stderr) = render_cpu(&obj_floor(&d, "bump h.png"), &d.join("h.exr"), &VIEW);
+    let (height, stderr) = render_cpu(
+        &obj_floor(&d, "bump h.png"),
+        &d.join("h.exr"),
+        &strs(&view()),
+    );
     assert!(
         stderr.contains("'h.png'") && stderr.contains("height map"),
         "{stderr}"
@@ -161,42 +161,34 @@ fn gltf_normal_textures_agree_with_obj() {
     // a normal scale of ½; against the OBJ floor whose map leans half as far in x and y.
     let d = dir("normal_maps_gltf");
     write_png(&d.join("n.png"), TOWARDS_V);
-    let mut buffer: Vec<u8> = Vec::new();
-    for (p, _) in CORNERS {
-        buffer.extend(p.iter().flat_map(|x| x.to_le_bytes()));
-    }
-    for (_, uv) in CORNERS {
-        buffer.extend([uv[0], 1.0 - uv[1]].iter().flat_map(|x| x.to_le_bytes()));
-    }
-    buffer.extend([0u32, 1, 2, 0, 2, 3].iter().flat_map(|x| x.to_le_bytes()));
-    std::fs::write(d.join("floor.bin"), &buffer).unwrap();
-    let json = format!(
-        r#"{{"asset":{{"version":"2.0"}},"extensionsUsed":["KHR_materials_specular"],"scene":0,"scenes":[{{"nodes":[0]}}],
-"nodes":[{{"mesh":0}}],
-"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"material":0}}]}}],
-"materials":[{{"pbrMetallicRoughness":{{"baseColorFactor":[0.5,0.5,0.5,1],"metallicFactor":0}},
-"normalTexture":{{"index":0,"scale":0.5}},
-"extensions":{{"KHR_materials_specular":{{"specularFactor":0}}}}}}],
-"textures":[{{"source":0}}],"images":[{{"uri":"n.png"}}],
-"accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,-1],"max":[1,0,1]}},
-{{"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"}},{{"bufferView":2,"componentType":5125,"count":6,"type":"SCALAR"}}],
-"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":32}},{{"buffer":0,"byteOffset":80,"byteLength":24}}],
-"buffers":[{{"byteLength":{},"uri":"floor.bin"}}]}}"#,
-        buffer.len()
+    let uvs: Vec<f32> = CORNERS
+        .iter()
+        .flat_map(|(_, uv)| [uv[0], 1.0 - uv[1]])
+        .collect();
+    let scene = gltf_floor(
+        &d,
+        CORNERS.map(|(p, _)| p),
+        &[("TEXCOORD_0", "VEC2", uvs)],
+        r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.5,0.5,0.5,1],"metallicFactor":0},
+"normalTexture":{"index":0,"scale":0.5},"extensions":{"KHR_materials_specular":{"specularFactor":0}}}"#,
+        &["n.png"],
     );
-    std::fs::write(d.join("floor.gltf"), json).unwrap();
-    let (gltf, stderr) = render_cpu(&d.join("floor.gltf"), &d.join("gltf.exr"), &VIEW);
+    let (gltf, stderr) = render_cpu(&scene, &d.join("gltf.exr"), &strs(&view()));
     assert!(!stderr.contains("normal textures"), "{stderr}");
     let (obj, _) = render_cpu(
         &obj_floor(&d, "norm -bm 0.5 n.png"),
         &d.join("obj.exr"),
-        &VIEW,
+        &strs(&view()),
     );
     let (g, o) = (middle(&gltf), middle(&obj));
     assert!((g - o).abs() < 0.005 * o, "glTF {g} vs OBJ {o}");
     // And that is the analytic value: x and y of the texel halved.
     write_png(&d.join("flat.png"), FLAT);
-    let (flat, _) = render_cpu(&obj_floor(&d, "norm flat.png"), &d.join("f.exr"), &VIEW);
+    let (flat, _) = render_cpu(
+        &obj_floor(&d, "norm flat.png"),
+        &d.join("f.exr"),
+        &strs(&view()),
+    );
     let m = Vec3::from(TOWARDS_V.map(|c| c as f32 / 255.0 * 2.0 - 1.0)) * Vec3::new(0.5, 0.5, 1.0);
     let sun = sun();
     let expected = Vec3::new(m.x, m.z, -m.y).normalize().dot(sun) / bent_normal(FLAT).dot(sun);

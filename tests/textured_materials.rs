@@ -5,36 +5,28 @@
 //! scene written without the texture, with the factors the texel stands for.
 mod common;
 
-use common::{render_cpu, tmp_dir as dir};
+use common::{floor_view, gltf_floor, render_cpu, strs, tmp_dir as dir};
 use glam::Vec3;
 
-/// A 2x2 floor at y = 0 seen from above under a sun 45° up and a dim sky.
-const FLOOR_VIEW: [&str; 24] = [
-    "--eye",
-    "0,3,0",
-    "--target",
-    "0,0,0",
-    "--up",
-    "0,0,-1",
-    "--fov",
-    "30",
-    "--width",
-    "24",
-    "--height",
-    "24",
-    "--spp",
-    "64",
-    "--integrator",
-    "mis",
-    "--sky",
-    "0.1,0.1,0.1",
-    "--sun",
-    "1,1,0",
-    "--max-depth",
-    "2",
-    "--seed",
-    "3",
-];
+/// The floor seen from above under a sun 45° up and a dim sky.
+fn floor_lit() -> Vec<String> {
+    floor_view(
+        24,
+        64,
+        &[
+            "--integrator",
+            "mis",
+            "--sky",
+            "0.1,0.1,0.1",
+            "--sun",
+            "1,1,0",
+            "--max-depth",
+            "2",
+            "--seed",
+            "3",
+        ],
+    )
+}
 
 /// Mean radiance of the image.
 fn mean(image: &runner::output::Image) -> Vec3 {
@@ -47,50 +39,21 @@ fn png(d: &std::path::Path, name: &str, texel: [u8; 4]) {
         .unwrap();
 }
 
-/// A glTF floor with texture coordinates whose material is `material` (JSON) and whose
-/// images are the PNG files `images`, rendered with `view`.
-fn gltf_floor(d: &std::path::Path, material: &str, images: &[&str], view: &[&str]) -> Vec3 {
+/// The mean radiance of a glTF floor with texture coordinates whose material is
+/// `material` (JSON) and whose images are the PNG files `images`, seen from above.
+fn textured_floor(d: &std::path::Path, material: &str, images: &[&str]) -> Vec3 {
     let corners = [
         [-1.0f32, 0.0, -1.0],
         [-1.0, 0.0, 1.0],
         [1.0, 0.0, 1.0],
         [1.0, 0.0, -1.0],
     ];
-    let mut buffer: Vec<u8> = corners
+    let uvs: Vec<f32> = corners
         .iter()
-        .flatten()
-        .flat_map(|x| x.to_le_bytes())
+        .flat_map(|c| [(c[0] + 1.0) / 2.0, (c[2] + 1.0) / 2.0])
         .collect();
-    for c in corners {
-        buffer.extend(
-            [(c[0] + 1.0) / 2.0, (c[2] + 1.0) / 2.0]
-                .iter()
-                .flat_map(|x| x.to_le_bytes()),
-        );
-    }
-    buffer.extend([0u32, 1, 2, 0, 2, 3].iter().flat_map(|x| x.to_le_bytes()));
-    std::fs::write(d.join("floor.bin"), &buffer).unwrap();
-    let textures: Vec<String> = (0..images.len())
-        .map(|i| format!(r#"{{"source":{i}}}"#))
-        .collect();
-    let images: Vec<String> = images
-        .iter()
-        .map(|f| format!(r#"{{"uri":"{f}"}}"#))
-        .collect();
-    let json = format!(
-        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
-"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"material":0}}]}}],
-"materials":[{material}],"textures":[{}],"images":[{}],
-"accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,-1],"max":[1,0,1]}},
-{{"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"}},{{"bufferView":2,"componentType":5125,"count":6,"type":"SCALAR"}}],
-"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":32}},{{"buffer":0,"byteOffset":80,"byteLength":24}}],
-"buffers":[{{"byteLength":{},"uri":"floor.bin"}}]}}"#,
-        textures.join(","),
-        images.join(","),
-        buffer.len()
-    );
-    std::fs::write(d.join("floor.gltf"), json).unwrap();
-    let (image, stderr) = render_cpu(&d.join("floor.gltf"), &d.join("floor.exr"), view);
+    let scene = gltf_floor(d, corners, &[("TEXCOORD_0", "VEC2", uvs)], material, images);
+    let (image, stderr) = render_cpu(&scene, &d.join("floor.exr"), &strs(&floor_lit()));
     assert!(!stderr.contains("not supported"), "{stderr}");
     mean(&image)
 }
@@ -109,23 +72,21 @@ fn metallic_roughness_textures_set_metalness_and_roughness_per_point() {
     let base = r#""baseColorFactor":[0.9,0.6,0.3,1]"#;
     let with_texture = |texel: [u8; 4], metallic: f32, roughness: f32| {
         png(&d, "mr.png", texel);
-        gltf_floor(
+        textured_floor(
             &d,
             &format!(
                 r#"{{"pbrMetallicRoughness":{{{base},"metallicFactor":{metallic},"roughnessFactor":{roughness},"metallicRoughnessTexture":{{"index":0}}}}}}"#
             ),
             &["mr.png"],
-            &FLOOR_VIEW,
         )
     };
     let plain = |metallic: f32, roughness: f32| {
-        gltf_floor(
+        textured_floor(
             &d,
             &format!(
                 r#"{{"pbrMetallicRoughness":{{{base},"metallicFactor":{metallic},"roughnessFactor":{roughness}}}}}"#
             ),
             &[],
-            &FLOOR_VIEW,
         )
     };
     // Metal where blue × metallicFactor ≥ ½, at roughness green × roughnessFactor.
@@ -160,17 +121,15 @@ fn metallic_roughness_textures_set_metalness_and_roughness_per_point() {
 fn base_colour_textures_tint_metals() {
     let d = dir("textured_materials_metal_colour");
     png(&d, "red.png", [255, 0, 0, 255]);
-    let textured = gltf_floor(
+    let textured = textured_floor(
         &d,
         r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.8,0.8,0.8,1],"metallicFactor":1,"roughnessFactor":0.5,"baseColorTexture":{"index":0}}}"#,
         &["red.png"],
-        &FLOOR_VIEW,
     );
-    let red = gltf_floor(
+    let red = textured_floor(
         &d,
         r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.8,0,0,1],"metallicFactor":1,"roughnessFactor":0.5}}"#,
         &[],
-        &FLOOR_VIEW,
     );
     close(textured, red, "red metal");
     assert!(red.x > 0.01 && red.x > 2.0 * red.y, "{red}");

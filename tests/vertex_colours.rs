@@ -2,33 +2,18 @@
 //! albedo, interpolated across each triangle.
 mod common;
 
-use common::{render_cpu, tmp_dir as dir};
+use common::{floor_view, gltf_floor, render_cpu, strs, tmp_dir as dir};
 use glam::Vec3;
 
-/// A 2x2 floor at y = 0 seen from above under a white sky: a Lambertian floor of albedo ρ
-/// under a uniform sky of radiance 1 has radiance ρ (direct light only).
-const VIEW: [&str; 20] = [
-    "--eye",
-    "0,3,0",
-    "--target",
-    "0,0,0",
-    "--up",
-    "0,0,-1",
-    "--fov",
-    "30",
-    "--width",
-    "32",
-    "--height",
-    "32",
-    "--spp",
-    "16",
-    "--integrator",
-    "nee",
-    "--sky",
-    "1,1,1",
-    "--max-depth",
-    "2",
-];
+/// The floor seen from above under a white sky: a Lambertian floor of albedo ρ under a
+/// uniform sky of radiance 1 has radiance ρ (direct light only).
+fn view() -> Vec<String> {
+    floor_view(
+        32,
+        16,
+        &["--integrator", "nee", "--sky", "1,1,1", "--max-depth", "2"],
+    )
+}
 
 /// The floor's corners: left (x = -1) at the image's left.
 const CORNERS: [[f32; 3]; 4] = [
@@ -69,7 +54,7 @@ fn ply_colours_are_srgb_bytes_interpolated_across_the_floor() {
     }
     ply += "4 0 1 2 3\n";
     std::fs::write(d.join("floor.ply"), ply).unwrap();
-    let (image, stderr) = render_cpu(&d.join("floor.ply"), &d.join("floor.exr"), &VIEW);
+    let (image, stderr) = render_cpu(&d.join("floor.ply"), &d.join("floor.exr"), &strs(&view()));
     assert!(!stderr.contains("vertex colour"), "{stderr}");
     let orange = 0.8 * Vec3::new(1.0, srgb(128.0 / 255.0), 0.0);
     let blue = 0.8 * Vec3::Z;
@@ -94,7 +79,7 @@ fn obj_and_gltf_colours_multiply_the_albedo() {
     obj += "usemtl m\nf 1 2 3 4\n";
     std::fs::write(d.join("floor.obj"), obj).unwrap();
     std::fs::write(d.join("floor.mtl"), "newmtl m\nKd 0.5 0.5 0.5\n").unwrap();
-    let (image, _) = render_cpu(&d.join("floor.obj"), &d.join("obj.exr"), &VIEW);
+    let (image, _) = render_cpu(&d.join("floor.obj"), &d.join("obj.exr"), &strs(&view()));
     near(
         column(&image, 16),
         0.5 * Vec3::new(1.0, srgb(0.5), 0.0),
@@ -103,28 +88,13 @@ fn obj_and_gltf_colours_multiply_the_albedo() {
 
     // glTF: COLOR_0 is linear; base colour 1, no specular (Lambertian).
     let colour = [0.2f32, 0.6, 0.9];
-    let mut buffer: Vec<u8> = CORNERS
-        .iter()
-        .flatten()
-        .flat_map(|x| x.to_le_bytes())
-        .collect();
-    for _ in 0..4 {
-        buffer.extend(colour.iter().flat_map(|x| x.to_le_bytes()));
-    }
-    buffer.extend([0u32, 1, 2, 0, 2, 3].iter().flat_map(|x| x.to_le_bytes()));
-    std::fs::write(d.join("floor.bin"), &buffer).unwrap();
-    let json = format!(
-        r#"{{"asset":{{"version":"2.0"}},"extensionsUsed":["KHR_materials_specular"],"scene":0,"scenes":[{{"nodes":[0]}}],
-"nodes":[{{"mesh":0}}],
-"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"COLOR_0":1}},"indices":2,"material":0}}]}}],
-"materials":[{{"pbrMetallicRoughness":{{"metallicFactor":0}},"extensions":{{"KHR_materials_specular":{{"specularFactor":0}}}}}}],
-"accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,-1],"max":[1,0,1]}},
-{{"bufferView":1,"componentType":5126,"count":4,"type":"VEC3"}},{{"bufferView":2,"componentType":5125,"count":6,"type":"SCALAR"}}],
-"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":48}},{{"buffer":0,"byteOffset":96,"byteLength":24}}],
-"buffers":[{{"byteLength":{},"uri":"floor.bin"}}]}}"#,
-        buffer.len()
+    let scene = gltf_floor(
+        &d,
+        CORNERS,
+        &[("COLOR_0", "VEC3", colour.repeat(4))],
+        r#"{"pbrMetallicRoughness":{"metallicFactor":0},"extensions":{"KHR_materials_specular":{"specularFactor":0}}}"#,
+        &[],
     );
-    std::fs::write(d.join("floor.gltf"), json).unwrap();
-    let (image, _) = render_cpu(&d.join("floor.gltf"), &d.join("gltf.exr"), &VIEW);
+    let (image, _) = render_cpu(&scene, &d.join("gltf.exr"), &strs(&view()));
     near(column(&image, 16), Vec3::from(colour), "glTF");
 }

@@ -110,3 +110,99 @@ pub fn mean_and_block_rms(
     let rms = (sq / (nx * ny) as f64).sqrt() / theirs as f64 * 3.0;
     (ours as f64 / theirs as f64 - 1.0, rms)
 }
+
+/// Render arguments for a 2x2 floor at y = 0 seen from straight above (eye 3 up, 30°
+/// field of view, image up = −z, so the floor's x runs left to right): a square image of
+/// `pixels`, `spp` samples, then `rest`.
+pub fn floor_view(pixels: u32, spp: u32, rest: &[&str]) -> Vec<String> {
+    let mut args: Vec<String> = [
+        "--eye", "0,3,0", "--target", "0,0,0", "--up", "0,0,-1", "--fov", "30",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    args.extend([
+        "--width".to_string(),
+        pixels.to_string(),
+        "--height".to_string(),
+        pixels.to_string(),
+        "--spp".to_string(),
+        spp.to_string(),
+    ]);
+    args.extend(rest.iter().map(|s| s.to_string()));
+    args
+}
+
+/// `args` as the `&str`s `render_cpu` takes.
+pub fn strs(args: &[String]) -> Vec<&str> {
+    args.iter().map(String::as_str).collect()
+}
+
+/// Write `dir/floor.gltf` (and `floor.bin`): one quad on `corners` (two triangles, 0-1-2
+/// and 0-2-3) with float vertex attributes `attributes` (glTF name, accessor type, the four
+/// corners' values), material `material` (JSON) and external images `images` (file names,
+/// texture i = image i). Returns its path.
+pub fn gltf_floor(
+    dir: &std::path::Path,
+    corners: [[f32; 3]; 4],
+    attributes: &[(&str, &str, Vec<f32>)],
+    material: &str,
+    images: &[&str],
+) -> std::path::PathBuf {
+    let mut buffer: Vec<u8> = corners
+        .iter()
+        .flatten()
+        .flat_map(|x| x.to_le_bytes())
+        .collect();
+    let mut views = vec![(0, 48)];
+    let mut accessors = vec![
+        r#"{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,0,-1],"max":[1,0,1]}"#
+            .to_string(),
+    ];
+    let mut names = vec![r#""POSITION":0"#.to_string()];
+    for (name, kind, values) in attributes {
+        let start = buffer.len();
+        buffer.extend(values.iter().flat_map(|x| x.to_le_bytes()));
+        views.push((start, buffer.len() - start));
+        names.push(format!(r#""{name}":{}"#, accessors.len()));
+        accessors.push(format!(
+            r#"{{"bufferView":{},"componentType":5126,"count":4,"type":"{kind}"}}"#,
+            views.len() - 1
+        ));
+    }
+    let start = buffer.len();
+    buffer.extend([0u32, 1, 2, 0, 2, 3].iter().flat_map(|x| x.to_le_bytes()));
+    views.push((start, 24));
+    let indices = accessors.len();
+    accessors.push(format!(
+        r#"{{"bufferView":{},"componentType":5125,"count":6,"type":"SCALAR"}}"#,
+        views.len() - 1
+    ));
+    std::fs::write(dir.join("floor.bin"), &buffer).unwrap();
+    let views: Vec<String> = views
+        .iter()
+        .map(|(o, l)| format!(r#"{{"buffer":0,"byteOffset":{o},"byteLength":{l}}}"#))
+        .collect();
+    let textures: Vec<String> = (0..images.len())
+        .map(|i| format!(r#"{{"source":{i}}}"#))
+        .collect();
+    let images: Vec<String> = images
+        .iter()
+        .map(|f| format!(r#"{{"uri":"{f}"}}"#))
+        .collect();
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"extensionsUsed":["KHR_materials_specular"],"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+"meshes":[{{"primitives":[{{"attributes":{{{}}},"indices":{indices},"material":0}}]}}],
+"materials":[{material}],"textures":[{}],"images":[{}],"accessors":[{}],"bufferViews":[{}],
+"buffers":[{{"byteLength":{},"uri":"floor.bin"}}]}}"#,
+        names.join(","),
+        textures.join(","),
+        images.join(","),
+        accessors.join(","),
+        views.join(","),
+        buffer.len()
+    );
+    let path = dir.join("floor.gltf");
+    std::fs::write(&path, json).unwrap();
+    path
+}
