@@ -62,6 +62,26 @@ pub struct Generated {
 }
 
 impl Generated {
+    /// A scene whose camera looks from `eye` at `target`, +y up, `fov` degrees vertically.
+    fn upright(
+        triangles: Vec<Triangle>,
+        materials: Vec<Material>,
+        eye: Vec3,
+        target: Vec3,
+        fov: f32,
+    ) -> Self {
+        Self {
+            triangles,
+            materials,
+            camera: CameraHint {
+                eye,
+                target,
+                up: Vec3::Y,
+                fov,
+            },
+        }
+    }
+
     pub fn into_scene(self) -> Result<Scene> {
         let mut scene = Scene::new(self.triangles, self.materials)?;
         scene.camera = Some(self.camera);
@@ -316,16 +336,13 @@ pub fn light_hall() -> Generated {
         };
         tris.extend(quad(q, m));
     }
-    Generated {
-        triangles: tris,
+    Generated::upright(
+        tris,
         materials,
-        camera: CameraHint {
-            eye: Vec3::new(0.0, 3.0, -1.0),
-            target: Vec3::new(0.0, 2.0, -40.0),
-            up: Vec3::Y,
-            fov: 60.0,
-        },
-    }
+        Vec3::new(0.0, 3.0, -1.0),
+        Vec3::new(0.0, 2.0, -40.0),
+        60.0,
+    )
 }
 
 pub fn many_lights() -> Generated {
@@ -373,16 +390,13 @@ pub fn many_lights() -> Generated {
             m,
         ));
     }
-    Generated {
-        triangles: tris,
+    Generated::upright(
+        tris,
         materials,
-        camera: CameraHint {
-            eye: Vec3::new(0.0, 4.0, 24.0),
-            target: Vec3::new(0.0, 0.5, -2.0),
-            up: Vec3::Y,
-            fov: 55.0,
-        },
-    }
+        Vec3::new(0.0, 4.0, 24.0),
+        Vec3::new(0.0, 0.5, -2.0),
+        55.0,
+    )
 }
 
 /// Value noise on the unit sphere from a few random plane waves: cheap, smooth, seeded.
@@ -458,16 +472,13 @@ pub fn rocks(target: usize) -> Generated {
         ],
         2,
     ));
-    Generated {
-        triangles: tris,
+    Generated::upright(
+        tris,
         materials,
-        camera: CameraHint {
-            eye: Vec3::new(0.0, 0.25 * extent + 8.0, extent * 1.1),
-            target: Vec3::new(0.0, 2.0, 0.0),
-            up: Vec3::Y,
-            fov: 50.0,
-        },
-    }
+        Vec3::new(0.0, 0.25 * extent + 8.0, extent * 1.1),
+        Vec3::new(0.0, 2.0, 0.0),
+        50.0,
+    )
 }
 
 /// A closed UV sphere: `rings` × 2·`rings` segments, fans of slivers at the poles, each
@@ -518,16 +529,13 @@ fn rings_for(triangles: usize) -> usize {
 /// The inside of a closed black UV sphere of radius 1 and about `target` triangles, seen
 /// from its centre.
 pub fn shell(target: usize) -> Generated {
-    Generated {
-        triangles: uv_sphere(Vec3::ZERO, Vec3::ONE, rings_for(target), 0),
-        materials: vec![Material::new(Vec3::ZERO, Vec3::ZERO)],
-        camera: CameraHint {
-            eye: Vec3::ZERO,
-            target: Vec3::new(0.3, 0.4, -1.0),
-            up: Vec3::Y,
-            fov: 100.0,
-        },
-    }
+    Generated::upright(
+        uv_sphere(Vec3::ZERO, Vec3::ONE, rings_for(target), 0),
+        vec![Material::new(Vec3::ZERO, Vec3::ZERO)],
+        Vec3::ZERO,
+        Vec3::new(0.3, 0.4, -1.0),
+        100.0,
+    )
 }
 
 /// The suite's ground: one huge quad (two triangles far larger than anything on them, the
@@ -589,16 +597,13 @@ pub fn spheres(target: usize) -> Generated {
         let c = Vec3::new((u() - 0.5) * 60.0, radius.y * 0.8, (u() - 0.5) * 60.0);
         tris.extend(uv_sphere(c, radius, rings, 1));
     }
-    Generated {
-        triangles: tris,
+    Generated::upright(
+        tris,
         materials,
-        camera: CameraHint {
-            eye: Vec3::new(0.0, 18.0, 45.0),
-            target: Vec3::new(0.0, 2.0, 0.0),
-            up: Vec3::Y,
-            fov: 50.0,
-        },
-    }
+        Vec3::new(0.0, 18.0, 45.0),
+        Vec3::new(0.0, 2.0, 0.0),
+        50.0,
+    )
 }
 
 /// `city-N`: N/12 long thin boxes (towers, walls and beams, up to 40:1) packed over a huge
@@ -622,16 +627,13 @@ pub fn city(target: usize) -> Generated {
         let lo = Vec3::new((u() - 0.5) * 2.0 * extent, 0.0, (u() - 0.5) * 2.0 * extent);
         tris.extend(closed_box(lo, lo + size, 1));
     }
-    Generated {
-        triangles: tris,
+    Generated::upright(
+        tris,
         materials,
-        camera: CameraHint {
-            eye: Vec3::new(0.0, 0.15 * extent, 0.9 * extent),
-            target: Vec3::new(0.0, 0.0, 0.2 * extent),
-            up: Vec3::Y,
-            fov: 50.0,
-        },
-    }
+        Vec3::new(0.0, 0.15 * extent, 0.9 * extent),
+        Vec3::new(0.0, 0.0, 0.2 * extent),
+        50.0,
+    )
 }
 
 /// `grass-N`: N/3 blades (a thin tapered quad and a tip, bent by the wind) over a huge
@@ -657,16 +659,13 @@ pub fn grass(target: usize) -> Generated {
         ));
         tris.push(Triangle::new(mid - 0.7 * side, mid + 0.7 * side, tip, 1));
     }
-    Generated {
-        triangles: tris,
+    Generated::upright(
+        tris,
         materials,
-        camera: CameraHint {
-            eye: Vec3::new(0.0, 0.7, 0.8 * extent),
-            target: Vec3::new(0.0, 0.0, 0.4 * extent),
-            up: Vec3::Y,
-            fov: 60.0,
-        },
-    }
+        Vec3::new(0.0, 0.7, 0.8 * extent),
+        Vec3::new(0.0, 0.0, 0.4 * extent),
+        60.0,
+    )
 }
 
 /// OBJ + MTL text for a generated scene (what `runner generate` writes).

@@ -303,7 +303,9 @@ pub fn frame_params(
     if kernel.spatial_passes > MAX_SPATIAL_PASSES {
         bail!("--spatial-passes is at most {MAX_SPATIAL_PASSES}");
     }
-    let ao_distance = kernel.ao_distance.unwrap_or(0.25 * scene.extent());
+    // The scene's diagonal walks every triangle: once here for both its uses.
+    let extent = scene.extent();
+    let ao_distance = kernel.ao_distance.unwrap_or(0.25 * extent);
     if !(ao_distance > 0.0 && ao_distance.is_finite()) {
         bail!("--ao-distance must be a positive number, got {ao_distance}");
     }
@@ -341,12 +343,8 @@ pub fn frame_params(
         spatial_passes: kernel.spatial_passes,
         ..Default::default()
     };
-    let [_, env_share, sun_share] = crate::light_shares::shares(
-        kernel.light_shares,
-        &scene.kernel(),
-        &params,
-        0.5 * scene.extent(),
-    );
+    let [_, env_share, sun_share] =
+        crate::light_shares::shares(kernel.light_shares, &scene.kernel(), &params, 0.5 * extent);
     Ok(FrameParams {
         env_light_probability: env_share,
         sun_light_probability: sun_share,
