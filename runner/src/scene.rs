@@ -606,102 +606,88 @@ fn parse_obj(
                     "materials of '{name}': {key} in {n} material(s) is not supported yet; ignored"
                 ));
             }
-            // Textures by file name: one decode however many materials share one.
+            // Textures by file name and use: one decode however many materials share one.
             let mut loaded: std::collections::HashMap<String, Option<u32>> = Default::default();
+            let mut map = |statement: Option<&str>,
+                           use_: MapUse,
+                           key: &str,
+                           material: &str,
+                           otherwise: &str| {
+                let file = crate::textures::map_file_name(statement?);
+                if file.is_empty() {
+                    return None;
+                }
+                let tag = match use_ {
+                    MapUse::Colour => "",
+                    MapUse::Mask => "\0mask",
+                    MapUse::Normal | MapUse::MaybeNormal => "\0normal",
+                };
+                *loaded.entry(format!("{file}{tag}")).or_insert_with(|| match load_texture(&file) {
+                    Ok(image) => match use_ {
+                        MapUse::Colour => Some(crate::textures::add(&mut attributes, &image)),
+                        MapUse::Mask => Some(crate::textures::add(
+                            &mut attributes,
+                            &crate::textures::cutout_mask(image),
+                        )),
+                        MapUse::MaybeNormal if !crate::textures::is_normal_map(&image) => {
+                            warnings.push(format!(
+                                "texture '{file}' ({key} of material '{material}') is a height map; bump mapping is not supported yet, ignored"
+                            ));
+                            None
+                        }
+                        MapUse::Normal | MapUse::MaybeNormal => {
+                            Some(crate::textures::add_linear(&mut attributes, &image))
+                        }
+                    },
+                    Err(why) => {
+                        warnings.push(format!(
+                            "texture '{file}' ({key} of material '{material}') not loaded: {why}; {otherwise}"
+                        ));
+                        None
+                    }
+                })
+            };
             mtls.iter()
                 .map(|m| {
                     let mut material = material_from_mtl(m);
-                    let map = m.diffuse_texture.as_deref().map(crate::textures::map_file_name);
-                    if let Some(map) = map.filter(|map| !map.is_empty()) {
-                        let index = *loaded.entry(map.clone()).or_insert_with(|| {
-                            match load_texture(&map) {
-                                Ok(image) => Some(crate::textures::add(&mut attributes, &image)),
-                                Err(why) => {
-                                    warnings.push(format!(
-                                        "texture '{map}' (map_Kd of material '{}') not loaded: {why}; using its Kd",
-                                        m.name
-                                    ));
-                                    None
-                                }
-                            }
-                        });
-                        // The texture is the albedo (exporters often write Kd 0 beside it).
-                        if let Some(index) = index {
-                            material.albedo_texture = index;
-                            material.albedo = [1.0; 3];
-                        }
+                    let name = m.name.as_str();
+                    // The texture is the albedo (exporters often write Kd 0 beside it).
+                    let diffuse = m.diffuse_texture.as_deref();
+                    if let Some(index) =
+                        map(diffuse, MapUse::Colour, "map_Kd", name, "using its Kd")
+                    {
+                        material.albedo_texture = index;
+                        material.albedo = [1.0; 3];
                     }
-                    let mask = m.dissolve_texture.as_deref().map(crate::textures::map_file_name);
-                    if let Some(mask) = mask.filter(|mask| !mask.is_empty()) {
-                        // Keyed apart from colour textures: the mask goes into the alpha.
-                        let key = format!("{mask}\0mask");
-                        let index = *loaded.entry(key).or_insert_with(|| match load_texture(&mask) {
-                            Ok(image) => Some(crate::textures::add(
-                                &mut attributes,
-                                &crate::textures::cutout_mask(image),
-                            )),
-                            Err(why) => {
-                                warnings.push(format!(
-                                    "texture '{mask}' (map_d of material '{}') not loaded: {why}; the surface stays opaque",
-                                    m.name
-                                ));
-                                None
-                            }
-                        });
-                        material.opacity_texture = index.unwrap_or(kernels::types::INVALID);
+                    let mask = m.dissolve_texture.as_deref();
+                    if let Some(index) = map(
+                        mask,
+                        MapUse::Mask,
+                        "map_d",
+                        name,
+                        "the surface stays opaque",
+                    ) {
+                        material.opacity_texture = index;
                     }
                     // `norm` (the PBR extension) is a normal map; `map_Bump`/`bump` one too
                     // when its texels say so (Blender writes normal maps there).
-                    let (statement, key) = match m.unknown_param.get("norm") {
-                        Some(norm) => (Some(norm.as_str()), "norm"),
-                        None => (m.normal_texture.as_deref(), "map_Bump"),
+                    let (statement, use_, key) = match m.unknown_param.get("norm") {
+                        Some(norm) => (Some(norm.as_str()), MapUse::Normal, "norm"),
+                        None => (m.normal_texture.as_deref(), MapUse::MaybeNormal, "map_Bump"),
                     };
-                    let file = statement.map(crate::textures::map_file_name);
-                    if let (Some(statement), Some(file)) = (statement, file.filter(|f| !f.is_empty())) {
-                        let entry = format!("{file}\0normal");
-                        let index = *loaded.entry(entry).or_insert_with(|| match load_texture(&file) {
-                            Ok(image) if key == "norm" || crate::textures::is_normal_map(&image) => {
-                                Some(crate::textures::add_linear(&mut attributes, &image))
-                            }
-                            Ok(_) => {
-                                warnings.push(format!(
-                                    "texture '{file}' ({key} of material '{}') is a height map; bump mapping is not supported yet, ignored",
-                                    m.name
-                                ));
-                                None
-                            }
-                            Err(why) => {
-                                warnings.push(format!(
-                                    "texture '{file}' ({key} of material '{}') not loaded: {why}; its normals stay unbent",
-                                    m.name
-                                ));
-                                None
-                            }
-                        });
-                        if let Some(index) = index {
-                            material.normal_texture = index;
-                            material.normal_scale =
-                                crate::textures::bump_multiplier(statement).unwrap_or(1.0);
-                        }
+                    if let Some(index) = map(statement, use_, key, name, "its normals stay unbent")
+                    {
+                        material.normal_texture = index;
+                        material.normal_scale = statement
+                            .and_then(crate::textures::bump_multiplier)
+                            .unwrap_or(1.0);
                     }
                     // map_Ke: emission = Ke (1 when not given) × the texture.
-                    let glow = m.unknown_param.get("map_Ke").map(|s| crate::textures::map_file_name(s));
-                    if let Some(file) = glow.filter(|f| !f.is_empty()) {
-                        let index = *loaded.entry(file.clone()).or_insert_with(|| match load_texture(&file) {
-                            Ok(image) => Some(crate::textures::add(&mut attributes, &image)),
-                            Err(why) => {
-                                warnings.push(format!(
-                                    "texture '{file}' (map_Ke of material '{}') not loaded: {why}; using its Ke",
-                                    m.name
-                                ));
-                                None
-                            }
-                        });
-                        if let Some(index) = index {
-                            material.emission_texture = index;
-                            if m.emissive.is_none() {
-                                material.emission = [1.0; 3];
-                            }
+                    let glow = m.unknown_param.get("map_Ke").map(String::as_str);
+                    if let Some(index) = map(glow, MapUse::Colour, "map_Ke", name, "using its Ke") {
+                        material.emission_texture = index;
+                        if m.emissive.is_none() {
+                            material.emission = [1.0; 3];
                         }
                     }
                     material
@@ -877,6 +863,20 @@ fn unknown_material_warnings(name: &str, text: &str, known: &[tobj::Material]) -
 /// α = √(2 / (Ns + 2))): Ns 10 is α 0.41, Ns 100 α 0.14, Ns 1000 α 0.045.
 pub fn alpha_from_phong(ns: f32) -> f32 {
     (2.0 / (ns.max(0.0) + 2.0)).sqrt()
+}
+
+/// What an MTL texture map is read as.
+#[derive(Clone, Copy)]
+enum MapUse {
+    /// An sRGB colour (`map_Kd`, `map_Ke`).
+    Colour,
+    /// A cut-out mask (`map_d`).
+    Mask,
+    /// A tangent-space normal map (`norm`).
+    Normal,
+    /// A normal map if its texels are normals, else a height map that is not read
+    /// (`map_Bump`, `bump`).
+    MaybeNormal,
 }
 
 /// MTL statements tobj does not know that the materials read (the PBR extension's and
