@@ -16,7 +16,7 @@ use crate::error::Result;
 use crate::integrator::Integrator;
 use crate::options::frame_params;
 use crate::render::{accumulate, RenderStats};
-use crate::scene::load as load_scene;
+use crate::scene::{load as load_scene, Scene};
 
 #[derive(Clone, Debug)]
 pub struct BenchReport {
@@ -184,7 +184,13 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
     if !(args.warmup >= 0.0 && args.warmup <= 600.0) {
         crate::bail!("--warmup must be between 0 and 600 seconds");
     }
-    let mut scene = load_scene(&args.scene)?;
+    bench_scene(args, &load_scene(&args.scene)?)
+}
+
+/// `bench` on a scene already loaded (the suite loads each of its scenes once for all its
+/// workloads); `frame_params` may add the built-in sky to the scene, so it works on a copy.
+fn bench_scene(args: &BenchArgs, loaded: &Scene) -> Result<BenchReport> {
+    let mut scene = loaded.clone();
     let params = frame_params(&args.scene, &args.kernel, &mut scene)?;
     let mut backend =
         crate::backend::open(args.device.backend, &scene, params.width, params.height)?;
@@ -315,15 +321,18 @@ pub fn suite(args: &BenchArgs) -> Result<String> {
     }
     for name in crate::generate::SUITE {
         let mut row = String::new();
+        let mut at_scene = args.scene.clone();
+        at_scene.scene = Some(name.into());
+        let scene = load_scene(&at_scene)?;
         for (integrator, spp, ao_rays, max_depth) in SUITE_WORKLOADS {
             let mut run = args.clone();
             run.suite = false;
-            run.scene.scene = Some(name.into());
+            run.scene = at_scene.clone();
             run.kernel.integrator = integrator;
             run.kernel.spp = spp;
             run.kernel.ao_rays = ao_rays;
             run.kernel.max_depth = max_depth;
-            let r = bench(&run)?;
+            let r = bench_scene(&run, &scene)?;
             if args.json {
                 let _ = writeln!(out, "{}", r.json());
                 continue;
