@@ -436,3 +436,38 @@ fn alpha_mask_materials_are_cut_out() {
         );
     }
 }
+
+#[test]
+fn extensions_the_loader_does_not_read_are_named() {
+    // A file that uses clearcoat and sheen (not read) besides specular and volume (read):
+    // one warning for each unread extension, none for the others.
+    let d = dir("gltf_unread_extensions");
+    let corners = [
+        [-1.0f32, 0.0, -1.0],
+        [-1.0, 0.0, 1.0],
+        [1.0, 0.0, 1.0],
+        [1.0, 0.0, -1.0],
+    ];
+    let path = common::gltf_floor(&d, corners, &[], r#"{"pbrMetallicRoughness":{}}"#, &[]);
+    let json = std::fs::read_to_string(&path).unwrap().replace(
+        r#""extensionsUsed":["KHR_materials_specular"]"#,
+        r#""extensionsUsed":["KHR_materials_specular","KHR_materials_volume","KHR_materials_clearcoat","KHR_materials_sheen"]"#,
+    );
+    std::fs::write(&path, json).unwrap();
+    let (_, stderr) = render(
+        &path,
+        &d.join("out.png"),
+        &["--width", "8", "--height", "8", "--spp", "1"],
+    );
+    for unread in ["KHR_materials_clearcoat", "KHR_materials_sheen"] {
+        assert!(
+            stderr.contains(&format!("extension {unread} is not supported yet")),
+            "{stderr}"
+        );
+    }
+    assert!(
+        !stderr.contains("KHR_materials_specular is not"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("KHR_materials_volume is not"), "{stderr}");
+}

@@ -28,6 +28,18 @@ use crate::scene::{CameraHint, Scene, SurfaceAttributes};
 /// Largest `.gltf`/`.glb` file read (its buffers and images are read by the importer).
 pub const MAX_GLTF_BYTES: u64 = 2 << 30;
 
+/// The extensions the loader reads (see the module documentation); a file that uses
+/// another gets one warning naming it (one it *requires* is refused by the importer).
+/// `KHR_materials_volume` is how glTF says a transmissive mesh is solid, which is what our
+/// dielectric always is.
+const READ_EXTENSIONS: [&str; 5] = [
+    "KHR_materials_emissive_strength",
+    "KHR_materials_transmission",
+    "KHR_materials_ior",
+    "KHR_materials_specular",
+    "KHR_materials_volume",
+];
+
 /// Whether `path` names a glTF file by its extension.
 pub fn is_gltf(path: &Path) -> bool {
     path.extension()
@@ -152,7 +164,11 @@ type Imported = (
 fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
     let (doc, buffers, images) =
         imported.map_err(|e| Error(format!("cannot load scene '{name}': {e}")))?;
-    let mut warnings = Vec::new();
+    let mut warnings: Vec<String> = doc
+        .extensions_used()
+        .filter(|e| !READ_EXTENSIONS.contains(e))
+        .map(|e| format!("'{name}': extension {e} is not supported yet; ignored"))
+        .collect();
     let mut attributes = SurfaceAttributes::default();
 
     // Images → textures, on first use by a base colour.
