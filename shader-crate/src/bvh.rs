@@ -85,8 +85,7 @@ impl Cutouts<'_> {
         }
         let mask = self.materials[tri.material as usize].opacity_texture;
         let a = self.shading[tri.shading_index() as usize];
-        let uv = a.uv(0) * (1.0 - b1 - b2) + a.uv(1) * b1 + a.uv(2) * b2;
-        sample_bilinear(self.textures, self.texels, mask, uv).w >= ALPHA_CUTOFF
+        sample_bilinear(self.textures, self.texels, mask, a.uv_at(b1, b2)).w >= ALPHA_CUTOFF
     }
 }
 
@@ -195,8 +194,7 @@ impl<'a> SceneBuffers<'a> {
         if m.emission_texture == INVALID || tri.shading_index() == INVALID {
             return m.emission();
         }
-        let a = self.shading[tri.shading_index() as usize];
-        let uv = a.uv(0) * (1.0 - b1 - b2) + a.uv(1) * b1 + a.uv(2) * b2;
+        let uv = self.shading[tri.shading_index() as usize].uv_at(b1, b2);
         m.emission()
             * sample_bilinear(self.textures, self.texels, m.emission_texture, uv).truncate()
     }
@@ -634,7 +632,7 @@ pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
         }
         let mut shading = base;
         if a.flags & SHADING_UVS != 0 {
-            s.uv = a.uv(0) * b0 + a.uv(1) * b1 + a.uv(2) * b2;
+            s.uv = a.uv_at(b1, b2);
             let m = scene.materials[tri.material as usize];
             if m.normal_texture != INVALID {
                 let texel = sample_bilinear(scene.textures, scene.texels, m.normal_texture, s.uv);

@@ -237,6 +237,10 @@ impl TriangleShading {
     pub fn uv(&self, k: usize) -> crate::glam::Vec2 {
         crate::glam::Vec2::new(self.uvs[2 * k], self.uvs[2 * k + 1])
     }
+    /// Texture coordinates at barycentrics (b1, b2), interpolated across the corners.
+    pub fn uv_at(&self, b1: f32, b2: f32) -> crate::glam::Vec2 {
+        self.uv(0) * (1.0 - b1 - b2) + self.uv(1) * b1 + self.uv(2) * b2
+    }
     pub fn colour(&self, k: usize) -> Vec3 {
         crate::texture::rgbe_to_linear(self.colours[k]).truncate()
     }
