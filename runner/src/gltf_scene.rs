@@ -171,7 +171,7 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
         .collect();
     let mut attributes = SurfaceAttributes::default();
 
-    // Images → textures, on first use by a base colour.
+    // Images → textures, on first use: as colour or as data.
     let mut texture_of_image: Vec<Option<Option<u32>>> = vec![None; images.len()];
     let mut data_of_image: Vec<Option<Option<u32>>> = vec![None; images.len()];
     let mut invisible: Vec<bool> = Vec::new();
@@ -192,40 +192,17 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                 Some(0.5)
             }
         };
-        if let Some(info) = pbr.base_color_texture() {
-            let image = info.texture().source().index();
-            let slot = texture_of_image[image].get_or_insert_with(|| {
-                match rgba8(&images[image]) {
-                    Some(rgba) => Some(crate::textures::add(&mut attributes, &rgba)),
-                    None => {
-                        warnings.push(format!(
-                            "'{name}': image {image} is not 8-bit ({:?}); its base colour texture is ignored",
-                            images[image].format
-                        ));
-                        None
-                    }
-                }
-            });
-            if let (Some(cutoff), Some(rgba)) = (cutoff, rgba8(&images[image])) {
-                let factor = pbr.base_color_factor()[3];
-                let mut mask = rgba;
-                for p in mask.pixels_mut() {
-                    let solid = p[3] as f32 / 255.0 * factor >= cutoff;
-                    *p = image::Rgba([255, 255, 255, if solid { 255 } else { 0 }]);
-                }
-                mat.opacity_texture = crate::textures::add(&mut attributes, &mask);
-            }
-            if let Some(texture) = *slot {
-                mat.albedo_texture = texture;
-            }
-            if info.tex_coord() != 0 {
-                ignored.push("texture coordinate sets other than 0");
-            }
-        }
-        // Data textures (read linear), each image decoded once.
-        let mut data_texture = |image: usize, what: &str| {
-            *data_of_image[image].get_or_insert_with(|| match rgba8(&images[image]) {
-                Some(rgba) => Some(crate::textures::add_linear(&mut attributes, &rgba)),
+        // Each image is decoded once per way it is read: as sRGB colour (base colour,
+        // emission) or as linear data (normal, metallic-roughness).
+        let mut texture = |image: usize, linear: bool, what: &str| {
+            let cache = if linear {
+                &mut data_of_image
+            } else {
+                &mut texture_of_image
+            };
+            *cache[image].get_or_insert_with(|| match rgba8(&images[image]) {
+                Some(rgba) if linear => Some(crate::textures::add_linear(&mut attributes, &rgba)),
+                Some(rgba) => Some(crate::textures::add(&mut attributes, &rgba)),
                 None => {
                     warnings.push(format!(
                         "'{name}': image {image} is not 8-bit ({:?}); its {what} is ignored",
@@ -235,48 +212,53 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                 }
             })
         };
+        let base_image = pbr
+            .base_color_texture()
+            .map(|i| i.texture().source().index());
+        if let Some(t) = base_image.and_then(|i| texture(i, false, "base colour texture")) {
+            mat.albedo_texture = t;
+        }
         if let Some(normal) = m.normal_texture() {
-            if let Some(texture) = data_texture(normal.texture().source().index(), "normal texture")
-            {
-                mat.normal_texture = texture;
+            if let Some(t) = texture(normal.texture().source().index(), true, "normal texture") {
+                mat.normal_texture = t;
                 mat.normal_scale = Some(normal.scale())
                     .filter(|s| s.is_finite())
                     .unwrap_or(1.0);
             }
-            if normal.tex_coord() != 0 {
-                ignored.push("texture coordinate sets other than 0");
-            }
         }
         if let Some(info) = pbr.metallic_roughness_texture() {
             let image = info.texture().source().index();
-            if let Some(texture) = data_texture(image, "metallic-roughness texture") {
+            if let Some(t) = texture(image, true, "metallic-roughness texture") {
                 if mat.kind != kernels::bsdf::BSDF_DIELECTRIC {
-                    mat.metal_rough_texture = texture;
+                    mat.metal_rough_texture = t;
                 }
-            }
-            if info.tex_coord() != 0 {
-                ignored.push("texture coordinate sets other than 0");
             }
         }
         if let Some(info) = m.emissive_texture() {
-            let image = info.texture().source().index();
-            let slot = *texture_of_image[image].get_or_insert_with(|| match rgba8(&images[image]) {
-                Some(rgba) => Some(crate::textures::add(&mut attributes, &rgba)),
-                None => {
-                    warnings.push(format!(
-                        "'{name}': image {image} is not 8-bit ({:?}); its emissive texture is ignored",
-                        images[image].format
-                    ));
-                    None
-                }
-            });
-            if let Some(texture) = slot {
-                mat.emission_texture = texture;
-            }
-            if info.tex_coord() != 0 {
-                ignored.push("texture coordinate sets other than 0");
+            if let Some(t) = texture(info.texture().source().index(), false, "emissive texture") {
+                mat.emission_texture = t;
             }
         }
+        if let (Some(cutoff), Some(rgba)) = (cutoff, base_image.and_then(|i| rgba8(&images[i]))) {
+            let factor = pbr.base_color_factor()[3];
+            let mut mask = rgba;
+            for p in mask.pixels_mut() {
+                let solid = p[3] as f32 / 255.0 * factor >= cutoff;
+                *p = image::Rgba([255, 255, 255, if solid { 255 } else { 0 }]);
+            }
+            mat.opacity_texture = crate::textures::add(&mut attributes, &mask);
+        }
+        let sets = [
+            pbr.base_color_texture().map(|i| i.tex_coord()),
+            m.normal_texture().map(|n| n.tex_coord()),
+            pbr.metallic_roughness_texture().map(|i| i.tex_coord()),
+            m.emissive_texture().map(|i| i.tex_coord()),
+        ];
+        let other_sets = sets.iter().flatten().filter(|&&set| set != 0).count();
+        ignored.extend(std::iter::repeat_n(
+            "texture coordinate sets other than 0",
+            other_sets,
+        ));
         // Without a texture the factor's alpha alone decides: solid, or a hole everywhere
         // (its primitives are left out).
         invisible.push(
