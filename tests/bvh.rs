@@ -11,7 +11,7 @@ use kernels::bvh::{
 use kernels::intersect::{Hit, Ray};
 use kernels::rng::Rng;
 use kernels::types::{Material, Triangle};
-use runner::accel::{build_bvh2, build_cwbvh, reorder};
+use runner::accel::{build_bvh2, build_cwbvh, reorder, BvhQuality};
 use runner::scene::default_scene_path;
 
 fn uniform_dir(rng: &mut Rng) -> Vec3 {
@@ -94,9 +94,16 @@ fn check(name: &str, tris: &[Triangle], ray: &Ray, want: &Hit, got: &Hit, order:
     }
 }
 
+/// Every build quality gives a tree that finds what brute force finds.
 fn agree_with_brute_force(tris: &[Triangle], rays: u32, seed: u32) {
-    let b2 = build_bvh2(tris);
-    let cw = build_cwbvh(tris);
+    for quality in [BvhQuality::Fast, BvhQuality::Auto, BvhQuality::High] {
+        agree_at_quality(tris, rays, seed, quality);
+    }
+}
+
+fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality) {
+    let b2 = build_bvh2(tris, quality);
+    let cw = build_cwbvh(tris, quality);
     let (t2, tc) = (reorder(tris, &b2.order), reorder(tris, &cw.order));
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
     for t in tris {
@@ -195,11 +202,14 @@ fn depths_of_built_bvhs_are_measured() {
     // A balanced-ish scene is shallow; a chain of coincident triangles is refused with a
     // message instead of being traversed with an overflowing stack.
     let tris = icosphere(Vec3::ZERO, 1.0, 3, 0);
-    let d2 = runner::accel::bvh2_depth(&build_bvh2(&tris).nodes);
-    let dc = runner::accel::cwbvh_depth(&build_cwbvh(&tris).nodes);
+    let d2 = runner::accel::bvh2_depth(&build_bvh2(&tris, BvhQuality::Auto).nodes);
+    let dc = runner::accel::cwbvh_depth(&build_cwbvh(&tris, BvhQuality::Auto).nodes);
     assert!((8..40).contains(&d2), "bvh2 depth {d2}");
     assert!((2..12).contains(&dc) && dc < d2, "cwbvh depth {dc}");
-    assert_eq!(runner::accel::bvh2_depth(&build_bvh2(&tris[..1]).nodes), 1);
+    assert_eq!(
+        runner::accel::bvh2_depth(&build_bvh2(&tris[..1], BvhQuality::Auto).nodes),
+        1
+    );
 }
 
 #[test]
@@ -238,7 +248,10 @@ fn deep_bvhs_are_rebuilt_balanced_and_traverse_right() {
             Triangle::new(Vec3::ZERO, Vec3::X, apex, 0)
         })
         .collect();
-    let (b2, bc) = (build_bvh2(&stack), build_cwbvh(&stack));
+    let (b2, bc) = (
+        build_bvh2(&stack, BvhQuality::Auto),
+        build_cwbvh(&stack, BvhQuality::Auto),
+    );
     let d2 = runner::accel::bvh2_depth(&b2.nodes);
     let dc = runner::accel::cwbvh_depth(&bc.nodes);
     eprintln!(
@@ -277,7 +290,7 @@ fn generated_rocks_scene() {
 #[test]
 fn cwbvh_children_are_popped_front_to_back() {
     let scene = runner::generate::rocks(50_000);
-    let built = build_cwbvh(&scene.triangles);
+    let built = build_cwbvh(&scene.triangles, BvhQuality::Auto);
     let byte = |w: [u32; 2], i: usize| (w[i / 4] >> (8 * (i % 4))) & 0xff;
     let (mut nearest_first, mut cases) = (0u32, 0u32);
     for node in &built.nodes {

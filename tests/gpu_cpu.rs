@@ -20,6 +20,7 @@ fn scene_args(width: u32, height: u32) -> SceneOptions {
         up: None,
         up_axis: UpAxis::Y,
         fov: None,
+        bvh_quality: None,
     }
 }
 

@@ -39,16 +39,68 @@ fn padded_boxes(triangles: &[Triangle]) -> Vec<PaddedBox> {
 
 use glam::Vec3;
 
-/// obvhs's "very slow" preset: PLOC with a medium search radius, then every node
-/// considered once for reinsertion (Meister & Bittner 2018). Against the "medium" preset
-/// (5% reinsertion) on the H100, AO 64 rays/px at 1080p: city-1m 64.1 → 50.5 ms, grass-1m
-/// 149.5 → 114.4 ms, rocks-1m, spheres-1m and shell-1m 0.5–3% faster; the build of 1M
-/// triangles takes ~1.2 s instead of ~0.7 s. (Its `pre_split` applies only to obvhs's
-/// triangle builder, and our flat grounds are never split by its area criterion anyway.)
-fn params() -> BvhBuildParams {
+/// How much of the build goes into the tree's quality (`--bvh-quality`): PLOC, then
+/// reinsertion (Meister & Bittner 2018), which moves subtrees to where they cost the
+/// traversal least. Reinsertion is what the effort buys, and what it costs: on one core
+/// here, 1M triangles take 0.35 s of PLOC, 0.4 s of conversion to CWBVH and 0.1 s (none)
+/// to 5 s (every node) of reinsertion.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum BvhQuality {
+    /// Every node considered for reinsertion up to `AUTO_FULL_TRIANGLES` triangles, a
+    /// share that keeps the reinsertion work constant above: loading stays ~1 s per
+    /// million triangles on one core
+    #[default]
+    Auto,
+    /// No reinsertion: the quickest build (interactive edits, huge scenes, short renders)
+    Fast,
+    /// Every node considered, however large the scene: for long renders of large scenes
+    High,
+}
+
+/// Scenes up to this size get full reinsertion under `auto`; above it the share of nodes
+/// considered shrinks as 1/n. Measured on the H100 (AO 64 rays/px, 1080p, 1M triangles),
+/// full against a 10% share: city-1m and grass-1m ~13–16% faster traversal, rocks-1m and
+/// spheres-1m ~1%; the build on one core 5 s against ~1 s.
+const AUTO_FULL_TRIANGLES: usize = 100_000;
+
+/// The quality every build of this process uses (`set_quality`): one setting for the five
+/// loaders and the built-in scenes alike, the way a thread count is.
+static QUALITY: std::sync::atomic::AtomicU8 = std::sync::atomic::AtomicU8::new(0);
+
+/// Choose the BVH quality for the scenes this process builds from now on.
+pub fn set_quality(quality: BvhQuality) {
+    QUALITY.store(quality as u8, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// The quality chosen with `set_quality` (`Auto` unless told).
+pub fn quality() -> BvhQuality {
+    match QUALITY.load(std::sync::atomic::Ordering::Relaxed) {
+        1 => BvhQuality::Fast,
+        2 => BvhQuality::High,
+        _ => BvhQuality::Auto,
+    }
+}
+
+/// The share of nodes considered for reinsertion for `triangles` triangles.
+pub fn reinsertion_share(quality: BvhQuality, triangles: usize) -> f32 {
+    match quality {
+        BvhQuality::Fast => 0.0,
+        BvhQuality::High => 1.0,
+        BvhQuality::Auto => (AUTO_FULL_TRIANGLES as f32 / triangles.max(1) as f32).min(1.0),
+    }
+}
+
+/// obvhs's "very slow" preset (PLOC with a medium search radius, 128-bit Morton codes)
+/// with the reinsertion share of `quality`. With every node considered, against obvhs's
+/// "medium" preset (5%) on the H100, AO 64 rays/px at 1080p: city-1m 64.1 → 50.5 ms,
+/// grass-1m 149.5 → 114.4 ms, rocks-1m, spheres-1m and shell-1m 0.5–3% faster. (Its
+/// `pre_split` applies only to obvhs's triangle builder, and our flat grounds are never
+/// split by its area criterion anyway.)
+fn params(quality: BvhQuality, triangles: usize) -> BvhBuildParams {
     BvhBuildParams {
         ploc_search_distance: PlocSearchDistance::Medium,
         sort_precision: SortPrecision::U128,
+        reinsertion_batch_ratio: reinsertion_share(quality, triangles),
         ..BvhBuildParams::very_slow_build()
     }
 }
@@ -133,12 +185,12 @@ fn balanced_bvh2(boxes: &[PaddedBox]) -> obvhs::bvh2::Bvh2 {
 }
 
 /// Binary BVH, leaves of up to 4 triangles after obvhs's SAH-driven collapse.
-pub fn build_bvh2(triangles: &[Triangle]) -> Built<Bvh2Node> {
+pub fn build_bvh2(triangles: &[Triangle], quality: BvhQuality) -> Built<Bvh2Node> {
     let start = Instant::now();
     let boxes = padded_boxes(triangles);
     let config = BvhBuildParams {
         max_prims_per_leaf: 4,
-        ..params()
+        ..params(quality, triangles.len())
     };
     let flatten = |bvh: &obvhs::bvh2::Bvh2| -> Vec<Bvh2Node> {
         bvh.nodes
@@ -173,7 +225,7 @@ pub fn build_bvh2(triangles: &[Triangle]) -> Built<Bvh2Node> {
 
 /// CWBVH: PLOC BVH2 with one triangle per leaf, converted by obvhs to 8-wide compressed
 /// nodes with up to 3 triangles per leaf child and children ordered for traversal.
-pub fn build_cwbvh(triangles: &[Triangle]) -> Built<CwBvhNode> {
+pub fn build_cwbvh(triangles: &[Triangle], quality: BvhQuality) -> Built<CwBvhNode> {
     let start = Instant::now();
     let boxes = padded_boxes(triangles);
     // Same 80 bytes, read as words on our side.
@@ -184,7 +236,11 @@ pub fn build_cwbvh(triangles: &[Triangle]) -> Built<CwBvhNode> {
     let mut bvh = if crowded {
         obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(&balanced_bvh2(&boxes), 3, true, false)
     } else {
-        obvhs::cwbvh::builder::build_cwbvh(&boxes, params(), &mut Duration::default())
+        obvhs::cwbvh::builder::build_cwbvh(
+            &boxes,
+            params(quality, triangles.len()),
+            &mut Duration::default(),
+        )
     };
     let mut nodes = flatten(&bvh);
     let balanced = crowded || cwbvh_depth(&nodes) > kernels::bvh::CWBVH_STACK;
@@ -200,8 +256,9 @@ pub fn build_cwbvh(triangles: &[Triangle]) -> Built<CwBvhNode> {
     }
 }
 
-/// The BVH of the traversal compiled into the kernels (cargo feature). Brute force needs
-/// none: it gets a single dummy node so GPU bindings stay valid.
+/// The BVH of the traversal compiled into the kernels (cargo feature), of the quality
+/// chosen with `set_quality`. Brute force needs none: it gets a single dummy node so GPU
+/// bindings stay valid.
 pub fn build(triangles: &[Triangle]) -> Built<kernels::bvh::BvhNode> {
     #[cfg(feature = "traversal-brute-force")]
     return Built {
@@ -211,9 +268,9 @@ pub fn build(triangles: &[Triangle]) -> Built<kernels::bvh::BvhNode> {
         balanced: false,
     };
     #[cfg(all(feature = "traversal-bvh2", not(feature = "traversal-brute-force")))]
-    return build_bvh2(triangles);
+    return build_bvh2(triangles, quality());
     #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
-    return build_cwbvh(triangles);
+    return build_cwbvh(triangles, quality());
 }
 
 /// Depth of a tree rooted at node 0 whose interior nodes' children are the nodes

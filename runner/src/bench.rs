@@ -11,6 +11,7 @@ use std::fmt::Write as _;
 use indicatif::ProgressBar;
 use kernels::types::FrameParams;
 
+use crate::accel::BvhQuality;
 use crate::backend::Backend;
 use crate::error::Result;
 use crate::integrator::Integrator;
@@ -23,6 +24,11 @@ pub struct BenchReport {
     pub scene: String,
     pub triangles: usize,
     pub bvh_build_ms: f64,
+    /// `--bvh-quality` of the build.
+    pub bvh_quality: String,
+    /// Reading the file, checking it and building everything (0 for scenes made in code
+    /// before `bench`).
+    pub load_ms: f64,
     pub traversal: &'static str,
     pub backend: String,
     pub integrator: String,
@@ -86,8 +92,13 @@ impl BenchReport {
         let _ = writeln!(s, "triangles      {}", self.triangles);
         let _ = writeln!(
             s,
-            "BVH            {} (build {:.1} ms)",
-            self.traversal, self.bvh_build_ms
+            "BVH            {} (build {:.1} ms, quality {})",
+            self.traversal, self.bvh_build_ms, self.bvh_quality
+        );
+        let _ = writeln!(
+            s,
+            "load           {:.1} ms (file, checks and BVH)",
+            self.load_ms
         );
         let _ = writeln!(s, "backend        {}", self.backend);
         let _ = writeln!(
@@ -124,7 +135,7 @@ impl BenchReport {
 
     pub fn json(&self) -> String {
         format!(
-            "{{\"scene\":{:?},\"triangles\":{},\"traversal\":{:?},\"bvh_build_ms\":{:.3},\"backend\":{:?},\
+            "{{\"scene\":{:?},\"triangles\":{},\"traversal\":{:?},\"bvh_build_ms\":{:.3},\"bvh_quality\":{:?},\"load_ms\":{:.3},\"backend\":{:?},\
              \"integrator\":{:?},\"width\":{},\"height\":{},\"spp\":{},\"rays_per_frame\":{},\
              \"frame_ms_min\":{:.4},\"frame_ms_median\":{:.4},\"pass_ms_min\":{:.4},\"pass_ms_median\":{:.4},\
              \"rays_per_second\":{:.1},\"breakdown_ms\":{{{}}}}}",
@@ -132,6 +143,8 @@ impl BenchReport {
             self.triangles,
             self.traversal,
             self.bvh_build_ms,
+            self.bvh_quality,
+            self.load_ms,
             self.backend,
             self.integrator,
             self.width,
@@ -247,6 +260,8 @@ fn bench_scene(args: &BenchArgs, loaded: &Scene) -> Result<BenchReport> {
             .unwrap_or_else(|| "cornell-box".into()),
         triangles: scene.triangles.len(),
         bvh_build_ms: scene.bvh_build_time.as_secs_f64() * 1e3,
+        bvh_quality: format!("{:?}", args.scene.bvh_quality.unwrap_or_default()).to_lowercase(),
+        load_ms: scene.load_time.as_secs_f64() * 1e3,
         traversal: kernels::bvh::TRAVERSAL,
         backend: backend.describe(),
         integrator: k.integrator.name().to_string(),
@@ -296,7 +311,7 @@ pub struct BenchArgs {
     /// Run the benchmark suite instead of one workload: AO (1 spp x 64 AO rays), NEE (direct
     /// light, 1 spp) and pt (8 segments, 1 spp) on each built-in suite scene (rocks-1m,
     /// spheres-1m, city-1m, grass-1m, shell-1m), one table; --scene, --integrator, --spp,
-    /// --ao-rays and --max-depth are set by the suite
+    /// --ao-rays and --max-depth are set by the suite, and --bvh-quality is high unless given
     #[arg(long)]
     pub suite: bool,
 }
@@ -323,6 +338,8 @@ pub fn suite(args: &BenchArgs) -> Result<String> {
         let mut row = String::new();
         let mut at_scene = args.scene.clone();
         at_scene.scene = Some(name.into());
+        // The suite measures traversal: the best tree unless told otherwise.
+        at_scene.bvh_quality = Some(args.scene.bvh_quality.unwrap_or(BvhQuality::High));
         let scene = load_scene(&at_scene)?;
         for (integrator, spp, ao_rays, max_depth) in SUITE_WORKLOADS {
             let mut run = args.clone();

@@ -34,6 +34,7 @@ pub fn load_and_render_bytes(data: &[u8]) -> Result<crate::output::Image> {
         up: None,
         up_axis: UpAxis::Y,
         fov: None,
+        bvh_quality: None,
     };
     let camera = crate::camera::camera(&args, &scene)?;
     let params = FrameParams {

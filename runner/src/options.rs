@@ -59,6 +59,10 @@ pub struct SceneOptions {
     /// Vertical field of view in degrees, in (0, 180)
     #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
     pub fov: Option<f32>,
+    /// How much of the BVH build goes into the tree's quality [default: auto; high for
+    /// `bench --suite`]
+    #[arg(long, value_enum, value_name = "QUALITY")]
+    pub bvh_quality: Option<crate::accel::BvhQuality>,
 }
 
 /// Integrator options shared by `render`, `bench` and `view`.
