@@ -473,3 +473,97 @@ fn extensions_the_loader_does_not_read_are_named() {
     );
     assert!(!stderr.contains("KHR_materials_volume is not"), "{stderr}");
 }
+
+/// The colour of each quadrant of a glTF floor (u left to right, v top to bottom in the
+/// image, as glTF's texture space) textured with a 16×16 image of four solid quadrants
+/// (red, green / blue, white) under a white sky, with `transform` as the base colour
+/// texture's KHR_texture_transform. Returns the dominant colour of each image quadrant,
+/// row by row, as 'r', 'g', 'b' or 'w'.
+fn transformed_quadrants(d: &Path, transform: &str) -> Vec<char> {
+    const N: u32 = 16;
+    let quadrants = image::RgbaImage::from_fn(N, N, |x, y| {
+        image::Rgba(match (x < N / 2, y < N / 2) {
+            (true, true) => [255, 0, 0, 255],
+            (false, true) => [0, 255, 0, 255],
+            (true, false) => [0, 0, 255, 255],
+            (false, false) => [255, 255, 255, 255],
+        })
+    });
+    quadrants.save(d.join("quadrants.png")).unwrap();
+    let corners = [
+        [-1.0f32, 0.0, -1.0],
+        [-1.0, 0.0, 1.0],
+        [1.0, 0.0, 1.0],
+        [1.0, 0.0, -1.0],
+    ];
+    // u along +x, v along +z: the top-down view shows v = 0 at the top.
+    let uvs: Vec<f32> = corners
+        .iter()
+        .flat_map(|c| [(c[0] + 1.0) / 2.0, (c[2] + 1.0) / 2.0])
+        .collect();
+    let material = format!(
+        r#"{{"pbrMetallicRoughness":{{"baseColorTexture":{{"index":0{transform}}},"metallicFactor":0}},"extensions":{{"KHR_materials_specular":{{"specularFactor":0}}}}}}"#
+    );
+    let scene = common::gltf_floor(
+        d,
+        corners,
+        &[("TEXCOORD_0", "VEC2", uvs)],
+        &material,
+        &["quadrants.png"],
+    );
+    let args = common::floor_view(32, 4, &["--integrator", "mis", "--sky", "1,1,1"]);
+    let (image, stderr) = render(&scene, &d.join("floor.exr"), &common::strs(&args));
+    assert!(!stderr.contains("not supported"), "{stderr}");
+    // The view spans u and v from 0.1 to 0.9: pixels 6 and 25 of 32 are at ≈ ¼ and ¾.
+    let at = |x: u32, y: u32| image.pixels[(y * image.width + x) as usize];
+    let (lo, hi) = (6, 25);
+    [(lo, lo), (hi, lo), (lo, hi), (hi, hi)]
+        .iter()
+        .map(|&(x, y)| {
+            let c = at(x, y);
+            let c = c / c.max_element();
+            match (c.x > 0.5, c.y > 0.5, c.z > 0.5) {
+                (true, false, false) => 'r',
+                (false, true, false) => 'g',
+                (false, false, true) => 'b',
+                (true, true, true) => 'w',
+                _ => panic!("mixed colour {c} at ({x}, {y})"),
+            }
+        })
+        .collect()
+}
+
+/// KHR_texture_transform moves, turns and scales the texture as the Khronos sample
+/// viewer shows it: offset in texture units, rotation turning u towards −v (a quarter
+/// turn maps (u, v) to (v, −u)), scale before both.
+#[test]
+fn texture_transforms_offset_rotate_and_scale_the_texture() {
+    let d = dir("gltf_texture_transform");
+    let ext = |t: &str| format!(r#","extensions":{{"KHR_texture_transform":{{{t}}}}}"#);
+    assert_eq!(transformed_quadrants(&d, ""), ['r', 'g', 'b', 'w']);
+    // Half a texture to the right: the left of the floor shows the right of the texture.
+    assert_eq!(
+        transformed_quadrants(&d, &ext(r#""offset":[0.5,0]"#)),
+        ['g', 'r', 'w', 'b']
+    );
+    // A quarter turn: (u, v) → (v, −u) (repeating), so the top left (¼, ¼) reads the
+    // texture at (¼, ¾) and the top right (¾, ¼) at (¼, ¼). The opposite turn would give
+    // g w r b.
+    assert_eq!(
+        transformed_quadrants(&d, &ext(r#""rotation":1.5707964"#)),
+        ['b', 'r', 'w', 'g']
+    );
+    // Scale first: u halved keeps every quadrant on the texture's left half.
+    assert_eq!(
+        transformed_quadrants(&d, &ext(r#""scale":[0.5,1]"#)),
+        ['r', 'r', 'b', 'b']
+    );
+    // All three, in the order scale, rotation, offset: (u, v) → (v + ½, −u/2).
+    assert_eq!(
+        transformed_quadrants(
+            &d,
+            &ext(r#""scale":[0.5,1],"rotation":1.5707964,"offset":[0.5,0]"#)
+        ),
+        ['w', 'w', 'b', 'b']
+    );
+}

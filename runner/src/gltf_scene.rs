@@ -1,7 +1,8 @@
 //! glTF 2.0 scenes (`.gltf` with external or embedded buffers and images, `.glb`) through
 //! the `gltf` crate: the default scene's nodes with their transforms, triangle primitives
 //! with normals and texture coordinates, materials mapped onto our BSDF family, base
-//! colour, normal, metallic-roughness and emissive textures, and the first camera as the
+//! colour, normal, metallic-roughness and emissive textures (with `KHR_texture_transform`,
+//! one per material, baked into the texture coordinates), and the first camera as the
 //! default view.
 //!
 //! Material mapping (the metallic-roughness model; α = roughness²):
@@ -18,7 +19,7 @@
 //! and from both sides when the material is `doubleSided` (the triangle is added flipped).
 use std::path::Path;
 
-use glam::{Mat3, Mat4, Vec2, Vec3};
+use glam::{Affine2, Mat3, Mat4, Vec2, Vec3};
 use kernels::types::{Material, Triangle, DEFAULT_IOR};
 
 use crate::bail;
@@ -32,13 +33,22 @@ pub const MAX_GLTF_BYTES: u64 = 2 << 30;
 /// another gets one warning naming it (one it *requires* is refused by the importer).
 /// `KHR_materials_volume` is how glTF says a transmissive mesh is solid, which is what our
 /// dielectric always is.
-const READ_EXTENSIONS: [&str; 5] = [
+const READ_EXTENSIONS: [&str; 6] = [
     "KHR_materials_emissive_strength",
+    "KHR_texture_transform",
     "KHR_materials_transmission",
     "KHR_materials_ior",
     "KHR_materials_specular",
     "KHR_materials_volume",
 ];
+
+/// A texture's `KHR_texture_transform` as the map of glTF texture coordinates it
+/// specifies: scale, then rotation, then offset. The rotation turns u towards −v, as the
+/// Khronos sample viewer, three.js and bevy read it (the extension's GLSL snippet is
+/// ambiguous about the sign; its TextureTransformTest model decides).
+fn uv_transform(t: &gltf::texture::TextureTransform) -> Affine2 {
+    Affine2::from_scale_angle_translation(t.scale().into(), -t.rotation(), t.offset().into())
+}
 
 /// Whether `path` names a glTF file by its extension.
 pub fn is_gltf(path: &Path) -> bool {
@@ -178,6 +188,8 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
     let mut blended = 0;
     let mut materials: Vec<Material> = Vec::new();
     let mut ignored: Vec<&str> = Vec::new();
+    // Each material's texture coordinate map (KHR_texture_transform).
+    let mut uv_maps: Vec<Affine2> = Vec::new();
     for m in doc.materials() {
         let mut mat = material(&m);
         let pbr = m.pbr_metallic_roughness();
@@ -248,11 +260,36 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
             }
             mat.opacity_texture = crate::textures::add(&mut attributes, &mask);
         }
+        // KHR_texture_transform: one map per material, baked into its primitives' texture
+        // coordinates: the base colour's, else the first texture's that has one (normal
+        // textures carry theirs where the gltf crate does not read it; they follow).
+        let infos = [
+            pbr.base_color_texture(),
+            pbr.metallic_roughness_texture(),
+            m.emissive_texture(),
+        ];
+        let transforms: Vec<Affine2> = infos
+            .iter()
+            .flatten()
+            .filter_map(|i| i.texture_transform())
+            .map(|t| uv_transform(&t))
+            .collect();
+        let uv_map = transforms.first().copied().unwrap_or(Affine2::IDENTITY);
+        if transforms.iter().any(|t| *t != uv_map) {
+            ignored.push("textures of one material with different texture transforms");
+        }
+        uv_maps.push(uv_map);
+        // A transform may name another coordinate set.
+        let set = |i: &gltf::texture::Info| {
+            i.texture_transform()
+                .and_then(|t| t.tex_coord())
+                .unwrap_or(i.tex_coord())
+        };
         let sets = [
-            pbr.base_color_texture().map(|i| i.tex_coord()),
+            pbr.base_color_texture().map(|i| set(&i)),
             m.normal_texture().map(|n| n.tex_coord()),
-            pbr.metallic_roughness_texture().map(|i| i.tex_coord()),
-            m.emissive_texture().map(|i| i.tex_coord()),
+            pbr.metallic_roughness_texture().map(|i| set(&i)),
+            m.emissive_texture().map(|i| set(&i)),
         ];
         let other_sets = sets.iter().flatten().filter(|&&set| set != 0).count();
         ignored.extend(std::iter::repeat_n(
@@ -322,10 +359,17 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                 n.map(|n| (normal_matrix * Vec3::from(n)).normalize_or_zero())
                     .collect()
             });
+            let material_index = prim.material().index();
             // glTF's v runs down the image; our textures put v = 0 at the bottom row.
-            let uvs: Option<Vec<Vec2>> = reader
-                .read_tex_coords(0)
-                .map(|t| t.into_f32().map(|[u, v]| Vec2::new(u, 1.0 - v)).collect());
+            let uv_map = material_index.map_or(Affine2::IDENTITY, |i| uv_maps[i]);
+            let uvs: Option<Vec<Vec2>> = reader.read_tex_coords(0).map(|t| {
+                t.into_f32()
+                    .map(|uv| {
+                        let t = uv_map.transform_point2(Vec2::from(uv));
+                        Vec2::new(t.x, 1.0 - t.y)
+                    })
+                    .collect()
+            });
             // COLOR_0 is linear (the specification), alpha ignored.
             let colours: Option<Vec<Vec3>> = reader
                 .read_colors(0)
@@ -334,7 +378,6 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                 Some(i) => i.into_u32().collect(),
                 None => (0..positions.len() as u32).collect(),
             };
-            let material_index = prim.material().index();
             if material_index.is_some_and(|i| invisible[i]) {
                 continue;
             }
