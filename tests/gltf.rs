@@ -567,3 +567,120 @@ fn texture_transforms_offset_rotate_and_scale_the_texture() {
         ['w', 'w', 'b', 'b']
     );
 }
+
+/// A glTF floor of Lambertian albedo ½ (the quad of `common::gltf_floor`, 2 × 2 at y = 0)
+/// with one more node carrying KHR_lights_punctual light `light` (JSON) placed by `node`
+/// (JSON members such as `"translation":[..]`), rendered from above with `mis`, direct
+/// light only, no sky. Returns the image and the render's stderr.
+fn lit_floor(d: &Path, light: &str, node: &str) -> (runner::output::Image, String) {
+    let corners = [
+        [-1.0f32, 0.0, -1.0],
+        [-1.0, 0.0, 1.0],
+        [1.0, 0.0, 1.0],
+        [1.0, 0.0, -1.0],
+    ];
+    let material = r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.5,0.5,0.5,1],"metallicFactor":0},"extensions":{"KHR_materials_specular":{"specularFactor":0}}}"#;
+    let scene = common::gltf_floor(d, corners, &[], material, &[]);
+    let json = std::fs::read_to_string(&scene).unwrap();
+    let json = json
+        .replace(
+            r#""extensionsUsed":["KHR_materials_specular"]"#,
+            &format!(
+                r#""extensionsUsed":["KHR_materials_specular","KHR_lights_punctual"],"extensions":{{"KHR_lights_punctual":{{"lights":[{light}]}}}}"#
+            ),
+        )
+        .replace(r#""scenes":[{"nodes":[0]}]"#, r#""scenes":[{"nodes":[0,1]}]"#)
+        .replace(
+            r#""nodes":[{"mesh":0}]"#,
+            &format!(r#""nodes":[{{"mesh":0}},{{{node},"extensions":{{"KHR_lights_punctual":{{"light":0}}}}}}]"#),
+        );
+    std::fs::write(&scene, json).unwrap();
+    let args = common::floor_view(
+        32,
+        256,
+        &["--integrator", "mis", "--max-depth", "2", "--seed", "5"],
+    );
+    render(&scene, &d.join("lit.exr"), &common::strs(&args))
+}
+
+/// A directional light is the scene's sun: straight down on the floor, 2 W/m² (1366 lux
+/// over 683 lm/W) give albedo × E / π everywhere; and `--sun` would override it.
+#[test]
+fn a_directional_light_is_the_suns_irradiance() {
+    let d = dir("gltf_directional_light");
+    // The node turns the light's −z to −y (a quarter turn about x).
+    let (image, stderr) = lit_floor(
+        &d,
+        r#"{"type":"directional","intensity":1366,"color":[1,1,1]}"#,
+        r#""rotation":[-0.70710678,0,0,0.70710678]"#,
+    );
+    assert!(!stderr.contains("not supported"), "{stderr}");
+    let expected = 0.5 * 2.0 / std::f32::consts::PI;
+    let mean = image.mean();
+    assert!(
+        (mean - Vec3::splat(expected)).abs().max_element() < 0.01 * expected,
+        "{mean} vs {expected}"
+    );
+}
+
+/// A point light of 683 cd (1 W/sr) one unit above the floor gives E = I h / (h² + ρ²)^{3/2}
+/// at distance ρ from the point below it: its stand-in sphere emits the same light.
+#[test]
+fn a_point_light_lights_like_a_point() {
+    let d = dir("gltf_point_light");
+    let light_at = Vec3::new(0.5, 1.0, 0.5);
+    let (image, stderr) = lit_floor(
+        &d,
+        r#"{"type":"point","intensity":683,"color":[1,1,1]}"#,
+        &format!(
+            r#""translation":[{},{},{}]"#,
+            light_at.x, light_at.y, light_at.z
+        ),
+    );
+    assert!(!stderr.contains("not supported"), "{stderr}");
+    // The view spans ±tan 15° × 3 around the origin; pixel (x, y) looks at the floor point
+    // (x, 0, z) of its centre (x right, z down the image).
+    let half = 3.0 * 15f32.to_radians().tan();
+    let floor_at = |p: u32| -half + 2.0 * half * (p as f32 + 0.5) / image.width as f32;
+    let (mut got, mut expected) = (0.0, 0.0);
+    for py in 24..28 {
+        for px in 24..28 {
+            got += image.pixels[(py * image.width + px) as usize].x;
+            let rho2 = (floor_at(px) - light_at.x).powi(2) + (floor_at(py) - light_at.z).powi(2);
+            let e = light_at.y / (light_at.y * light_at.y + rho2).powf(1.5);
+            expected += 0.5 * e / std::f32::consts::PI;
+        }
+    }
+    assert!(
+        (got - expected).abs() < 0.03 * expected,
+        "{got} vs {expected}"
+    );
+}
+
+/// A spot light is drawn as a disc facing along the spot, with one warning that its cone
+/// is not kept; straight below it the floor gets its axis intensity.
+#[test]
+fn a_spot_light_is_a_disc_with_a_warning() {
+    let d = dir("gltf_spot_light");
+    let (image, stderr) = lit_floor(
+        &d,
+        r#"{"type":"spot","intensity":683,"spot":{"outerConeAngle":0.5}}"#,
+        r#""translation":[0,1,0],"rotation":[-0.70710678,0,0,0.70710678]"#,
+    );
+    assert_eq!(
+        stderr.matches("spot light(s) drawn as small discs").count(),
+        1,
+        "{stderr}"
+    );
+    // The floor straight below (the image's centre) gets E = I / h².
+    let c = image.width / 2;
+    let mut got = 0.0;
+    for (x, y) in [(c - 1, c - 1), (c, c - 1), (c - 1, c), (c, c)] {
+        got += 0.25 * image.pixels[(y * image.width + x) as usize].x;
+    }
+    let expected = 0.5 / std::f32::consts::PI;
+    assert!(
+        (got - expected).abs() < 0.05 * expected,
+        "{got} vs {expected}"
+    );
+}

@@ -2,8 +2,8 @@
 //! the `gltf` crate: the default scene's nodes with their transforms, triangle primitives
 //! with normals and texture coordinates, materials mapped onto our BSDF family, base
 //! colour, normal, metallic-roughness and emissive textures (with `KHR_texture_transform`,
-//! one per material, baked into the texture coordinates), and the first camera as the
-//! default view.
+//! one per material, baked into the texture coordinates), `KHR_lights_punctual` lights
+//! (see `gltf_lights`), and the first camera as the default view.
 //!
 //! Material mapping (the metallic-roughness model; α = roughness²):
 //! - `KHR_materials_transmission` > 0: a dielectric of index `KHR_materials_ior` (1.5);
@@ -24,6 +24,7 @@ use kernels::types::{Material, Triangle, DEFAULT_IOR};
 
 use crate::bail;
 use crate::error::{Error, Result};
+use crate::gltf_lights::{radiometric, PointLight, SceneSun};
 use crate::scene::{CameraHint, Scene, SurfaceAttributes};
 
 /// Largest `.gltf`/`.glb` file read (its buffers and images are read by the importer).
@@ -33,7 +34,8 @@ pub const MAX_GLTF_BYTES: u64 = 2 << 30;
 /// another gets one warning naming it (one it *requires* is refused by the importer).
 /// `KHR_materials_volume` is how glTF says a transmissive mesh is solid, which is what our
 /// dielectric always is.
-const READ_EXTENSIONS: [&str; 6] = [
+const READ_EXTENSIONS: [&str; 7] = [
+    "KHR_lights_punctual",
     "KHR_materials_emissive_strength",
     "KHR_texture_transform",
     "KHR_materials_transmission",
@@ -186,6 +188,7 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
     let mut data_of_image: Vec<Option<Option<u32>>> = vec![None; images.len()];
     let mut invisible: Vec<bool> = Vec::new();
     let mut blended = 0;
+    let mut spots = 0;
     let mut materials: Vec<Material> = Vec::new();
     let mut ignored: Vec<&str> = Vec::new();
     // Each material's texture coordinate map (KHR_texture_transform).
@@ -317,6 +320,10 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
         .ok_or_else(|| Error(format!("scene '{name}' has no scene to render")))?;
     let mut triangles = Vec::new();
     let mut camera = None;
+    // KHR_lights_punctual: the first directional light is the sun; point and spot lights
+    // become small emitters once the scene's size is known (`gltf_lights`).
+    let mut sun: Option<SceneSun> = None;
+    let mut point_lights: Vec<PointLight> = Vec::new();
     let mut stack: Vec<(gltf::Node, Mat4)> = scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
     // Node graphs are trees by the specification; a file that says otherwise must not hang.
     let mut visited = 0usize;
@@ -338,6 +345,40 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                     up,
                     fov: p.yfov().to_degrees(),
                 });
+            }
+        }
+        if let Some(light) = node.light() {
+            let value = radiometric(light.color(), light.intensity())
+                .map_err(|e| Error(format!("scene '{name}': light {}: {e}", light.index())))?;
+            let position = world.transform_point3(Vec3::ZERO);
+            // Lights shine along their node's −z.
+            let forward = world.transform_vector3(-Vec3::Z).normalize_or_zero();
+            match light.kind() {
+                gltf::khr_lights_punctual::Kind::Directional if sun.is_none() => {
+                    if forward == Vec3::ZERO {
+                        bail!("scene '{name}': light {} has no direction", light.index());
+                    }
+                    sun = Some(SceneSun {
+                        direction: -forward,
+                        irradiance: value,
+                    });
+                }
+                gltf::khr_lights_punctual::Kind::Directional => {
+                    ignored.push("directional lights after the first");
+                }
+                gltf::khr_lights_punctual::Kind::Point => point_lights.push(PointLight {
+                    position,
+                    intensity: value,
+                    spot: None,
+                }),
+                gltf::khr_lights_punctual::Kind::Spot { .. } => {
+                    spots += 1;
+                    point_lights.push(PointLight {
+                        position,
+                        intensity: value,
+                        spot: Some(forward).filter(|f| *f != Vec3::ZERO),
+                    })
+                }
             }
         }
         let Some(mesh) = node.mesh() else { continue };
@@ -422,6 +463,20 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
     if uses_default {
         materials.push(Material::conductor(Vec3::ONE, 1.0));
     }
+    if !point_lights.is_empty() {
+        let radius = crate::gltf_lights::RADIUS_SHARE * extent(&triangles, &point_lights);
+        let (more, mut emitting) =
+            crate::gltf_lights::emitters(&point_lights, radius, materials.len() as u32)
+                .map_err(|e| Error(format!("scene '{name}': {e}")))?;
+        triangles.extend(more);
+        materials.append(&mut emitting);
+    }
+    if spots > 0 {
+        warnings.push(format!(
+            "'{name}': {spots} spot light(s) drawn as small discs facing along the spot: \
+             the intensity on the axis is kept, the cone's angles are not (a cosine falloff)"
+        ));
+    }
     if blended > 0 {
         warnings.push(format!(
             "'{name}': {blended} material(s) of alpha mode BLEND drawn as MASK at ½ (partial \
@@ -442,5 +497,28 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
     warnings.append(&mut scene.warnings);
     scene.warnings = warnings;
     scene.camera = camera;
+    scene.sun = sun;
     Ok(scene)
+}
+
+/// The diagonal of the box around the triangles and the lights (1 for a single light).
+fn extent(triangles: &[Triangle], lights: &[PointLight]) -> f32 {
+    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    let points = triangles
+        .iter()
+        .flat_map(|t| {
+            let (a, b, c) = t.vertices();
+            [a, b, c]
+        })
+        .chain(lights.iter().map(|l| l.position));
+    for p in points {
+        lo = lo.min(p);
+        hi = hi.max(p);
+    }
+    let diagonal = (hi - lo).length();
+    if diagonal > 0.0 && diagonal.is_finite() {
+        diagonal
+    } else {
+        1.0
+    }
 }

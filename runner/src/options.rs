@@ -98,7 +98,8 @@ pub struct KernelOptions {
     #[arg(long, default_value_t = 1.0, value_name = "S")]
     pub env_scale: f32,
     /// A sun: the direction towards it (world coordinates); a distant disk light that
-    /// next-event estimation samples by its cone
+    /// next-event estimation samples by its cone [default: the scene's own directional
+    /// light (glTF), if it has one]
     #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
     pub sun: Option<Vec3>,
     /// The sun disk's radiance
@@ -243,15 +244,36 @@ pub fn frame_params(
                 crate::scene::MAX_RADIANCE
             );
         }
-        if !(kernel.sun_angle > 0.0 && kernel.sun_angle < 90.0) {
-            bail!(
-                "--sun-angle must be in (0, 90) degrees, got {}",
-                kernel.sun_angle
-            );
-        }
     }
+    if !(kernel.sun_angle > 0.0 && kernel.sun_angle < 90.0) {
+        bail!(
+            "--sun-angle must be in (0, 90) degrees, got {}",
+            kernel.sun_angle
+        );
+    }
+    let sun_cos_max = (0.5 * kernel.sun_angle).to_radians().cos();
+    // The sun: --sun, else the file's own (a glTF directional light, its irradiance spread
+    // over a disk of --sun-angle): (direction towards it, the disk's radiance).
+    let sun = match (kernel.sun, scene.sun) {
+        (Some(direction), _) => Some((direction.normalize(), kernel.sun_radiance)),
+        (None, Some(own)) => {
+            let solid_angle = std::f32::consts::TAU * (1.0 - sun_cos_max);
+            let radiance = own.irradiance / solid_angle;
+            if !(radiance.is_finite() && radiance.max_element() <= crate::scene::MAX_RADIANCE) {
+                bail!(
+                    "the scene's directional light ({} W/m²) over a {}° disk is brighter than \
+                     {:e}: widen --sun-angle",
+                    own.irradiance,
+                    kernel.sun_angle,
+                    crate::scene::MAX_RADIANCE
+                );
+            }
+            Some((own.direction, radiance))
+        }
+        (None, None) => None,
+    };
     let needs_lights = kernel.integrator != Integrator::Ao;
-    let unlit = needs_lights && scene.lights.is_empty() && kernel.sun.is_none();
+    let unlit = needs_lights && scene.lights.is_empty() && sun.is_none();
     let (sky, env_texture) = match (&kernel.env, kernel.sky) {
         (Some(_), Some(_)) => bail!("give --sky or --env, not both"),
         (Some(path), None) => (
@@ -325,13 +347,9 @@ pub fn frame_params(
         sky: sky.to_array(),
         env_texture,
         env_rotation: kernel.env_rotate.to_radians(),
-        sun_cos_max: (0.5 * kernel.sun_angle).to_radians().cos(),
-        sun_direction: kernel.sun.unwrap_or(Vec3::Y).normalize().to_array(),
-        sun_radiance: if kernel.sun.is_some() {
-            kernel.sun_radiance.to_array()
-        } else {
-            [0.0; 3]
-        },
+        sun_cos_max,
+        sun_direction: sun.map_or(Vec3::Y, |(d, _)| d).to_array(),
+        sun_radiance: sun.map_or(Vec3::ZERO, |(_, r)| r).to_array(),
         env_up: match args.up_axis {
             UpAxis::Y => kernels::types::ENV_UP_Y,
             UpAxis::Z => kernels::types::ENV_UP_Z,

@@ -37,6 +37,8 @@ pub struct Scene {
     /// The emissive triangles, with the alias table for power sampling.
     pub lights: Vec<Light>,
     pub camera: Option<CameraHint>,
+    /// A sun the file itself has (a glTF directional light); `--sun` overrides it.
+    pub sun: Option<crate::gltf_lights::SceneSun>,
     pub warnings: Vec<String>,
     /// Vertex normals, texture coordinates and textures (see `SurfaceAttributes`).
     pub attributes: SurfaceAttributes,
@@ -230,6 +232,7 @@ impl Scene {
             materials,
             lights,
             camera: None,
+            sun: None,
             warnings,
             attributes,
         })
