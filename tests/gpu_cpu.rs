@@ -154,7 +154,7 @@ fn path_integrators_gpu_match_cpu() {
 fn textures_and_vertex_normals_gpu_match_cpu() {
     // A textured floor with a different normal at each corner (interpolated across it), a
     // normal map bending it further and a checkered cut-out mask, an emitter whose emission
-    // is textured, under an emitter and an environment map with a sun: the
+    // is textured, a back wall under a height (bump) map, under an emitter and an environment map with a sun: the
     // texel buffer, the bilinear lookup, sRGB, linear and RGBE decoding, shading normals, the mask
     // test inside traversal and the map's importance sampling (NEE picks it half the time;
     // RIS and ReSTIR hold its directions in reservoirs) run on both sides.
@@ -196,7 +196,7 @@ fn textures_and_vertex_normals_gpu_match_cpu() {
         .unwrap();
     std::fs::write(
         dir.join("s.mtl"),
-        "newmtl floor\nKd 1 1 1\nmap_Kd noise.png\nmap_d checker.png\nnorm bumps.png\nnewmtl light\nKd 0 0 0\nKe 20 20 20\nmap_Ke noise.png\n",
+        "newmtl floor\nKd 1 1 1\nmap_Kd noise.png\nmap_d checker.png\nnorm bumps.png\nnewmtl light\nKd 0 0 0\nKe 20 20 20\nmap_Ke noise.png\nnewmtl wall\nKd 0.8 0.8 0.8\nmap_Bump -bm 0.05 noise.png\n",
     )
     .unwrap();
     std::fs::write(
@@ -205,7 +205,9 @@ fn textures_and_vertex_normals_gpu_match_cpu() {
          v -0.3 1 -0.3\nv 0.3 1 -0.3\nv 0.3 1 0.3\nv -0.3 1 0.3\n\
          vt 0 0\nvt 0 2\nvt 2 2\nvt 2 0\n\
          vn 0.3 1 0\nvn 0 1 0.3\nvn -0.3 1 0\nvn 0 1 -0.3\n\
-         usemtl floor\nf 1/1/1 2/2/2 3/3/3 4/4/4\nusemtl light\nf 5/1 6/2 7/3 8/4\n",
+         v -0.9 0 -0.9\nv -0.9 0.8 -0.9\nv 0.9 0.8 -0.9\nv 0.9 0 -0.9\n\
+         usemtl floor\nf 1/1/1 2/2/2 3/3/3 4/4/4\nusemtl light\nf 5/1 6/2 7/3 8/4\n\
+         usemtl wall\nf 9/1 12/4 11/3 10/2\n",
     )
     .unwrap();
     let sky: Vec<image::Rgb<f32>> = (0..16u32 * 32)

@@ -1,5 +1,6 @@
 //! Tangent-space normal maps (MTL `norm`, `map_Bump` holding a normal map, glTF
-//! `normalTexture`) bend the shading normal: a floor under a small sun is as bright as the
+//! `normalTexture`) and height maps (MTL `map_Bump`/`bump` holding grey heights) bend the
+//! shading normal: a floor under a small sun is as bright as the
 //! cosine between the bent normal and the sun says, in the frame the formats define (x
 //! along increasing u, y along increasing v: up the image).
 mod common;
@@ -140,19 +141,61 @@ fn map_bump_is_a_normal_map_only_when_its_texels_are_normals() {
         "the map bent nothing"
     );
 
-    // A grey height map is not read as normals: one warning, the floor stays flat.
+    // A grey map is a height map, not normals: a constant height leaves the floor flat.
     write_png(&d.join("h.png"), [90, 90, 90]);
     let (height, stderr) = render_cpu(
         &obj_floor(&d, "bump h.png"),
         &d.join("h.exr"),
         &strs(&view()),
     );
-    assert!(
-        stderr.contains("'h.png'") && stderr.contains("height map"),
-        "{stderr}"
-    );
+    assert!(!stderr.contains("h.png"), "{stderr}");
     let (m_h, m_f) = (middle(&height), middle(&flat));
     assert!((m_h - m_f).abs() < 0.01 * m_f, "{m_h} vs {m_f}");
+}
+
+/// A grey ramp of 64 texels (0, 4, ..., 252) along the image's `columns` (else its rows).
+fn write_ramp(path: &std::path::Path, columns: bool) {
+    image::RgbaImage::from_fn(64, 64, |x, y| {
+        let g = (4 * if columns { x } else { y }) as u8;
+        image::Rgba([g, g, g, 255])
+    })
+    .save(path)
+    .unwrap();
+}
+
+/// A height map displaces the floor by `-bm` scene units at its brightest, and shades it
+/// with the displaced surface's normal: a ramp rising along u by 4/255 a texel (1.004 per
+/// unit of u; u spans the 2-unit floor) at `-bm 0.5` tilts the floor by a slope of
+/// 0.251 away from the rise; a ramp down the image's rows rises along −v (towards +z).
+#[test]
+fn height_maps_tilt_the_floor_by_their_slope() {
+    let d = dir("normal_maps_height");
+    let sun = sun();
+    write_png(&d.join("flat.png"), FLAT);
+    let (flat, _) = render_cpu(
+        &obj_floor(&d, "norm flat.png"),
+        &d.join("f.exr"),
+        &strs(&view()),
+    );
+    let slope = 0.5 * (4.0 * 64.0 / 255.0) / 2.0;
+    for (columns, normal, what) in [
+        (true, Vec3::new(-slope, 1.0, 0.0), "rising along +x"),
+        (false, Vec3::new(0.0, 1.0, -slope), "rising along +z"),
+    ] {
+        write_ramp(&d.join("ramp.png"), columns);
+        let (image, stderr) = render_cpu(
+            &obj_floor(&d, "map_Bump -bm 0.5 ramp.png"),
+            &d.join("r.exr"),
+            &strs(&view()),
+        );
+        assert!(!stderr.contains("ramp.png"), "{stderr}");
+        let expected = normal.normalize().dot(sun) / Vec3::Y.dot(sun);
+        let ratio = middle(&image) / middle(&flat);
+        assert!(
+            (ratio - expected).abs() < 0.01 * expected,
+            "{what}: {ratio} vs {expected}"
+        );
+    }
 }
 
 #[test]

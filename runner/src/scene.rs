@@ -630,6 +630,8 @@ fn parse_obj(
             }
             // Textures by file name and use: one decode however many materials share one.
             let mut loaded: std::collections::HashMap<String, Option<u32>> = Default::default();
+            // The textures among them that are height (bump) maps, not normal maps.
+            let height_maps = std::cell::RefCell::new(std::collections::HashSet::new());
             let mut map = |statement: Option<&str>,
                            use_: MapUse,
                            key: &str,
@@ -652,10 +654,10 @@ fn parse_obj(
                             &crate::textures::cutout_mask(image),
                         )),
                         MapUse::MaybeNormal if !crate::textures::is_normal_map(&image) => {
-                            warnings.push(format!(
-                                "texture '{file}' ({key} of material '{material}') is a height map; bump mapping is not supported yet, ignored"
-                            ));
-                            None
+                            // A height map: its red channel, read linear.
+                            let index = crate::textures::add_linear(&mut attributes, &image);
+                            height_maps.borrow_mut().insert(index);
+                            Some(index)
                         }
                         MapUse::Normal | MapUse::MaybeNormal => {
                             Some(crate::textures::add_linear(&mut attributes, &image))
@@ -692,7 +694,8 @@ fn parse_obj(
                         material.opacity_texture = index;
                     }
                     // `norm` (the PBR extension) is a normal map; `map_Bump`/`bump` one too
-                    // when its texels say so (Blender writes normal maps there).
+                    // when its texels say so (Blender writes normal maps there), else a
+                    // height map displacing by `-bm` scene units at its brightest.
                     let (statement, use_, key) = match m.unknown_param.get("norm") {
                         Some(norm) => (Some(norm.as_str()), MapUse::Normal, "norm"),
                         None => (m.normal_texture.as_deref(), MapUse::MaybeNormal, "map_Bump"),
@@ -703,6 +706,9 @@ fn parse_obj(
                         material.normal_scale = statement
                             .and_then(crate::textures::bump_multiplier)
                             .unwrap_or(1.0);
+                        if height_maps.borrow().contains(&index) {
+                            material.normal_map_kind = kernels::types::NORMAL_MAP_HEIGHT;
+                        }
                     }
                     // map_Ke: emission = Ke (1 when not given) × the texture.
                     let glow = m.unknown_param.get("map_Ke").map(String::as_str);
@@ -896,8 +902,7 @@ enum MapUse {
     Mask,
     /// A tangent-space normal map (`norm`).
     Normal,
-    /// A normal map if its texels are normals, else a height map that is not read
-    /// (`map_Bump`, `bump`).
+    /// A normal map if its texels are normals, else a height map (`map_Bump`, `bump`).
     MaybeNormal,
 }
 

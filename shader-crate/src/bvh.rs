@@ -11,7 +11,7 @@ use crate::texture::sample_bilinear;
 use crate::types::cwbvh_meta::{self, FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
 use crate::types::{
     Bvh2Node, CwBvhNode, GBufferTexel, Light, Material, TextureInfo, Triangle, TriangleShading,
-    INVALID, METAL_THRESHOLD, SHADING_COLOURS, SHADING_NORMALS, SHADING_UVS,
+    INVALID, METAL_THRESHOLD, NORMAL_MAP_HEIGHT, SHADING_COLOURS, SHADING_NORMALS, SHADING_UVS,
 };
 
 /// The node type of the traversal compiled in.
@@ -636,7 +636,21 @@ pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
             let m = scene.materials[tri.material as usize];
             if m.normal_texture != INVALID {
                 let texel = sample_bilinear(scene.textures, scene.texels, m.normal_texture, s.uv);
-                shading = normal_mapped(&tri, &a, base, texel.truncate(), m.normal_scale);
+                shading = if m.normal_map_kind == NORMAL_MAP_HEIGHT {
+                    // The height's slopes by differences one texel apart.
+                    let info = scene.textures[m.normal_texture as usize];
+                    let step = Vec2::new(1.0 / info.width as f32, 1.0 / info.height as f32);
+                    let height = |uv: Vec2| {
+                        sample_bilinear(scene.textures, scene.texels, m.normal_texture, uv).x
+                    };
+                    let slope = Vec2::new(
+                        (height(s.uv + Vec2::new(step.x, 0.0)) - texel.x) / step.x,
+                        (height(s.uv + Vec2::new(0.0, step.y)) - texel.x) / step.y,
+                    );
+                    bump_mapped(&tri, &a, base, slope * m.normal_scale)
+                } else {
+                    normal_mapped(&tri, &a, base, texel.truncate(), m.normal_scale)
+                };
             }
         }
         // Turned to the side the ray arrived on, like `n` (two-sided surfaces); a map that
@@ -671,15 +685,9 @@ pub fn normal_mapped(
     texel: Vec3,
     scale: f32,
 ) -> Vec3 {
-    let (p0, p1, p2) = tri.vertices();
-    let (e1, e2) = (p1 - p0, p2 - p0);
-    let (d1, d2) = (a.uv(1) - a.uv(0), a.uv(2) - a.uv(0));
-    let det = d1.x * d2.y - d1.y * d2.x;
-    if det == 0.0 || !det.is_finite() {
+    let Some((dpdu, dpdv)) = uv_derivatives(tri, a) else {
         return base;
-    }
-    let dpdu = (e1 * d2.y - e2 * d1.y) / det;
-    let dpdv = (e2 * d1.x - e1 * d2.x) / det;
+    };
     let t = (dpdu - base * base.dot(dpdu)).normalize_or_zero();
     if t == Vec3::ZERO {
         return base;
@@ -695,6 +703,39 @@ pub fn normal_mapped(
     let bent = bent.normalize_or_zero();
     if bent == Vec3::ZERO || !bent.is_finite() {
         base
+    } else {
+        bent
+    }
+}
+
+/// dp/du and dp/dv of triangle `tri` under its texture coordinates; none where the
+/// coordinates do not span the triangle.
+fn uv_derivatives(tri: &Triangle, a: &TriangleShading) -> Option<(Vec3, Vec3)> {
+    let (p0, p1, p2) = tri.vertices();
+    let (e1, e2) = (p1 - p0, p2 - p0);
+    let (d1, d2) = (a.uv(1) - a.uv(0), a.uv(2) - a.uv(0));
+    let det = d1.x * d2.y - d1.y * d2.x;
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    Some(((e1 * d2.y - e2 * d1.y) / det, (e2 * d1.x - e1 * d2.x) / det))
+}
+
+/// The normal `base` of triangle `tri` under a bump map whose displacement along the
+/// normal changes by `slope` (∂d/∂u, ∂d/∂v, in scene units per unit of u and v): the
+/// normal of the displaced surface p + d·n, whose tangents are dp/du + ∂d/∂u·n and
+/// dp/dv + ∂d/∂v·n (pbrt's bump mapping without the normal's own change, which is
+/// small on the faces it is used on), turned to `base`'s side.
+pub fn bump_mapped(tri: &Triangle, a: &TriangleShading, base: Vec3, slope: Vec2) -> Vec3 {
+    let Some((dpdu, dpdv)) = uv_derivatives(tri, a) else {
+        return base;
+    };
+    let bent = (dpdu + base * slope.x).cross(dpdv + base * slope.y);
+    let bent = bent.normalize_or_zero();
+    if bent == Vec3::ZERO || !bent.is_finite() {
+        base
+    } else if bent.dot(base) < 0.0 {
+        -bent
     } else {
         bent
     }

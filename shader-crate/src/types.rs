@@ -120,7 +120,8 @@ pub struct Material {
     /// A tangent-space normal map (glTF `normalTexture`, MTL `norm`; stored linear, see
     /// `TEXTURE_LINEAR8`) bending the shading normal; INVALID: none.
     pub normal_texture: u32,
-    /// The normal map's strength: its x and y are scaled by this (glTF's `scale`).
+    /// The normal map's strength: its x and y are scaled by this (glTF's `scale`); for a
+    /// height map, the displacement of a texel of value 1 in scene units (MTL's `-bm`).
     pub normal_scale: f32,
     /// glTF's metallic-roughness texture (linear; green: roughness, blue: metalness, each
     /// times its factor: α = `alpha` × green², metalness = `metallic` × blue); INVALID: none.
@@ -131,8 +132,15 @@ pub struct Material {
     /// Emitted radiance is `emission` × this texture (glTF `emissiveTexture`, MTL `map_Ke`;
     /// sRGB colour); INVALID: `emission` alone.
     pub emission_texture: u32,
-    pub _pad: u32,
+    /// What `normal_texture` holds: `NORMAL_MAP_TANGENT` or `NORMAL_MAP_HEIGHT`.
+    pub normal_map_kind: u32,
 }
+
+/// `normal_texture` is a tangent-space normal map (x, y, z encoded in r, g, b).
+pub const NORMAL_MAP_TANGENT: u32 = 0;
+/// `normal_texture` is a height (bump) map: its red channel × `normal_scale` displaces the
+/// surface along its normal, and the shading normal is the displaced surface's.
+pub const NORMAL_MAP_HEIGHT: u32 = 1;
 
 /// Metalness from which a texel of a metallic-roughness texture is a conductor.
 pub const METAL_THRESHOLD: f32 = 0.5;
@@ -157,7 +165,7 @@ impl Material {
             metal_rough_texture: INVALID,
             metallic: 0.0,
             emission_texture: INVALID,
-            _pad: 0,
+            normal_map_kind: NORMAL_MAP_TANGENT,
         }
     }
     /// A metal: reflectance `specular` at normal incidence, GGX roughness `alpha` (0: mirror).
