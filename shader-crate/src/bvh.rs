@@ -807,6 +807,36 @@ mod tests {
     }
 
     #[test]
+    fn bump_maps_tilt_away_from_the_rise_mirrored_or_not() {
+        // u along +x: a height rising by ½ per unit of u is a slope of ½ along +x, whose
+        // normal leans towards −x: (−½, 0, 1).
+        let (tri, a) = mapped([0.0, 0.0, 1.0, 0.0, 0.0, 1.0]);
+        let n = bump_mapped(&tri, &a, Vec3::Z, Vec2::new(0.5, 0.0));
+        assert!(
+            (n - Vec3::new(-0.5, 0.0, 1.0).normalize()).length() < 1e-5,
+            "{n}"
+        );
+        // Rising along v (+y): leans towards −y.
+        let n = bump_mapped(&tri, &a, Vec3::Z, Vec2::new(0.0, 0.5));
+        assert!(
+            (n - Vec3::new(0.0, -0.5, 1.0).normalize()).length() < 1e-5,
+            "{n}"
+        );
+        // Mirrored in u (u grows along −x): the rise is along −x, the lean towards +x; the
+        // normal stays on the base's side.
+        let (tri, a) = mapped([0.0, 0.0, -1.0, 0.0, 0.0, 1.0]);
+        let n = bump_mapped(&tri, &a, Vec3::Z, Vec2::new(0.5, 0.0));
+        assert!(
+            (n - Vec3::new(0.5, 0.0, 1.0).normalize()).length() < 1e-5,
+            "{n}"
+        );
+        // No slope, or degenerate texture coordinates: the base normal.
+        assert!((bump_mapped(&tri, &a, Vec3::Z, Vec2::ZERO) - Vec3::Z).length() < 1e-6);
+        let (tri, a) = mapped([0.5; 6]);
+        assert_eq!(bump_mapped(&tri, &a, Vec3::Z, Vec2::new(0.5, 0.0)), Vec3::Z);
+    }
+
+    #[test]
     fn offset_moves_to_the_normal_side_at_every_scale() {
         let n = Vec3::new(0.3, -0.5, 0.8).normalize();
         for scale in [1e-3f32, 1.0, 1e3, 1e5] {
