@@ -238,3 +238,66 @@ fn gltf_normal_textures_agree_with_obj() {
     let ratio = g / middle(&flat);
     assert!((ratio - expected).abs() < 0.01, "{ratio} vs {expected}");
 }
+
+/// glTF TANGENT orients the normal map as the file says, not as the texture coordinates
+/// would: on the floor (normal +y) a tangent along −z takes the map's x there, and the
+/// bitangent normal × tangent × w its y (w = 1: −x; w = −1: +x).
+#[test]
+fn gltf_tangents_orient_normal_maps() {
+    let d = dir("normal_maps_gltf_tangents");
+    let uvs: Vec<f32> = CORNERS
+        .iter()
+        .flat_map(|(_, uv)| [uv[0], 1.0 - uv[1]])
+        .collect();
+    let material = r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.5,0.5,0.5,1],"metallicFactor":0},
+"normalTexture":{"index":0},"extensions":{"KHR_materials_specular":{"specularFactor":0}}}"#;
+    let render = |texel: [u8; 3], w: f32| {
+        write_png(&d.join("n.png"), texel);
+        let tangents: Vec<f32> = (0..4).flat_map(|_| [0.0, 0.0, -1.0, w]).collect();
+        let scene = gltf_floor(
+            &d,
+            CORNERS.map(|(p, _)| p),
+            &[
+                ("TEXCOORD_0", "VEC2", uvs.clone()),
+                ("TANGENT", "VEC4", tangents),
+            ],
+            material,
+            &["n.png"],
+        );
+        let (image, stderr) = render_cpu(&scene, &d.join("t.exr"), &strs(&view()));
+        assert!(!stderr.contains("not supported"), "{stderr}");
+        middle(&image)
+    };
+    let flat = render(FLAT, 1.0);
+    let sun = sun();
+    let texel = |t: [u8; 3]| Vec3::from(t.map(|c| c as f32 / 255.0 * 2.0 - 1.0));
+    for (t, w, frame, what) in [
+        (
+            TOWARDS_U,
+            1.0,
+            [Vec3::NEG_Z, Vec3::NEG_X],
+            "x along the tangent",
+        ),
+        (
+            TOWARDS_V,
+            1.0,
+            [Vec3::NEG_Z, Vec3::NEG_X],
+            "y along normal × tangent",
+        ),
+        (
+            TOWARDS_V,
+            -1.0,
+            [Vec3::NEG_Z, Vec3::X],
+            "y flipped by w = −1",
+        ),
+    ] {
+        let m = texel(t);
+        let bent = (frame[0] * m.x + frame[1] * m.y + Vec3::Y * m.z).normalize();
+        let expected = bent.dot(sun) / Vec3::Y.dot(sun);
+        let ratio = render(t, w) / flat;
+        assert!(
+            (ratio - expected).abs() < 0.01 * expected,
+            "{what}: {ratio} vs {expected}"
+        );
+    }
+}

@@ -19,7 +19,7 @@
 //! and from both sides when the material is `doubleSided` (the triangle is added flipped).
 use std::path::Path;
 
-use glam::{Affine2, Mat3, Mat4, Vec2, Vec3};
+use glam::{Affine2, Mat3, Mat4, Vec2, Vec3, Vec4};
 use kernels::types::{Material, Triangle, DEFAULT_IOR};
 
 use crate::bail;
@@ -411,6 +411,17 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                     })
                     .collect()
             });
+            // TANGENT: directions like positions' (not normals'); a mirroring transform
+            // turns the bitangent's side.
+            let mirror = if flips { -1.0 } else { 1.0 };
+            let tangents: Option<Vec<Vec4>> = reader.read_tangents().map(|t| {
+                t.map(|[x, y, z, w]| {
+                    world
+                        .transform_vector3(Vec3::new(x, y, z))
+                        .extend(w * mirror)
+                })
+                .collect()
+            });
             // COLOR_0 is linear (the specification), alpha ignored.
             let colours: Option<Vec<Vec3>> = reader
                 .read_colors(0)
@@ -455,6 +466,10 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                         .as_ref()
                         .map(|col| c.map(|i| col.get(i).copied().unwrap_or(Vec3::ONE)));
                     attributes.attach(&mut t, corner_normals, corner_uvs, corner_colours);
+                    if let Some(tangents) = &tangents {
+                        let corner = |i: usize| tangents.get(i).copied().unwrap_or(Vec4::ZERO);
+                        attributes.attach_tangents(&t, c.map(corner));
+                    }
                     triangles.push(t);
                 }
             }

@@ -100,6 +100,28 @@ impl SurfaceAttributes {
         self.shading.push(shading);
     }
 
+    /// Give `triangle` (already given its attributes by `attach`) its corners' tangents
+    /// (xyz along +u; w = ±1, the bitangent's side as glTF defines it), which then orient
+    /// its normal map instead of its own dp/du. Tangents that are not finite unit-ish
+    /// directions are not stored.
+    pub fn attach_tangents(&mut self, triangle: &Triangle, tangents: [glam::Vec4; 3]) {
+        let Some(shading) = self.shading.get_mut(triangle.shading as usize) else {
+            return;
+        };
+        let directions = tangents.map(|t| t.truncate().normalize_or_zero());
+        if directions
+            .iter()
+            .any(|d| *d == Vec3::ZERO || !d.is_finite())
+        {
+            return;
+        }
+        shading.tangents = directions.map(kernels::types::encode_unit);
+        shading.flags |= kernels::types::SHADING_TANGENTS;
+        if tangents[0].w < 0.0 {
+            shading.flags |= kernels::types::SHADING_BITANGENT_FLIPPED;
+        }
+    }
+
     /// Flag the triangles whose material has a cut-out mask for the traversal's test
     /// (`kernels::types::ALPHA_TESTED`), for every loader alike. A mask needs the hit's
     /// texture coordinates: a triangle without them stays opaque. Call after `check`.

@@ -11,7 +11,8 @@ use crate::texture::sample_bilinear;
 use crate::types::cwbvh_meta::{self, FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
 use crate::types::{
     Bvh2Node, CwBvhNode, GBufferTexel, Light, Material, TextureInfo, Triangle, TriangleShading,
-    INVALID, METAL_THRESHOLD, NORMAL_MAP_HEIGHT, SHADING_COLOURS, SHADING_NORMALS, SHADING_UVS,
+    INVALID, METAL_THRESHOLD, NORMAL_MAP_HEIGHT, SHADING_BITANGENT_FLIPPED, SHADING_COLOURS,
+    SHADING_NORMALS, SHADING_TANGENTS, SHADING_UVS,
 };
 
 /// The node type of the traversal compiled in.
@@ -649,7 +650,7 @@ pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
                     );
                     bump_mapped(&tri, &a, base, slope * m.normal_scale)
                 } else {
-                    normal_mapped(&tri, &a, base, texel.truncate(), m.normal_scale)
+                    normal_mapped(&tri, &a, b1, b2, base, texel.truncate(), m.normal_scale)
                 };
             }
         }
@@ -672,32 +673,23 @@ pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
 /// that bends past the horizon keeps the unmapped normal there.
 const MIN_SHADING_COSINE: f32 = 1e-3;
 
-/// The normal `base` of triangle `tri` bent by a tangent-space normal map texel (each
-/// channel in [0, 1] encoding [−1, 1]; x along increasing u, y along increasing v, z along
-/// `base`; x and y scaled by `scale`). The tangent frame is the triangle's own: dp/du and
-/// dp/dv from its texture coordinates, made orthogonal to `base`, with the handedness of
-/// the mapping (a mirrored texture keeps its bumps). Without a usable mapping (degenerate
-/// texture coordinates, a texel encoding no direction) `base` is kept.
+/// The normal `base` of triangle `tri` at barycentrics (b1, b2) bent by a tangent-space
+/// normal map texel (each channel in [0, 1] encoding [−1, 1]; x along the tangent, y along
+/// the bitangent, z along `base`; x and y scaled by `scale`), in `tangent_frame`'s frame.
+/// Without a usable frame or a texel encoding no direction, `base` is kept.
+#[allow(clippy::too_many_arguments)] // the hit (triangle, attributes, barycentrics) and the map
 pub fn normal_mapped(
     tri: &Triangle,
     a: &TriangleShading,
+    b1: f32,
+    b2: f32,
     base: Vec3,
     texel: Vec3,
     scale: f32,
 ) -> Vec3 {
-    let Some((dpdu, dpdv)) = uv_derivatives(tri, a) else {
+    let Some((t, b)) = tangent_frame(tri, a, b1, b2, base) else {
         return base;
     };
-    let t = (dpdu - base * base.dot(dpdu)).normalize_or_zero();
-    if t == Vec3::ZERO {
-        return base;
-    }
-    let handedness = if base.cross(t).dot(dpdv) < 0.0 {
-        -1.0
-    } else {
-        1.0
-    };
-    let b = base.cross(t) * handedness;
     let m = texel * 2.0 - Vec3::ONE;
     let bent = t * (m.x * scale) + b * (m.y * scale) + base * m.z;
     let bent = bent.normalize_or_zero();
@@ -706,6 +698,48 @@ pub fn normal_mapped(
     } else {
         bent
     }
+}
+
+/// Squared share of a tangent that must lie across the normal for it to orient a normal
+/// map (encoding error is ~1e-4; a tangent within ~0.5° of the normal orients nothing).
+const MIN_TANGENT_SHARE: f32 = 1e-4;
+
+/// The tangent and bitangent of a normal map at barycentrics (b1, b2), orthogonal to
+/// `base`. The file's tangents when it has them (glTF `TANGENT`, which its normal maps were
+/// baked against: interpolated, bitangent = base × tangent × w); else the triangle's own
+/// frame: dp/du, and the bitangent on the side of dp/dv (the mapping's handedness, so a
+/// mirrored texture keeps its bumps: x along increasing u, y along increasing v). None
+/// where neither gives a direction (degenerate texture coordinates).
+fn tangent_frame(
+    tri: &Triangle,
+    a: &TriangleShading,
+    b1: f32,
+    b2: f32,
+    base: Vec3,
+) -> Option<(Vec3, Vec3)> {
+    let (along, handedness) = if a.flags & SHADING_TANGENTS != 0 {
+        let t = a.tangent(0) * (1.0 - b1 - b2) + a.tangent(1) * b1 + a.tangent(2) * b2;
+        let flipped = a.flags & SHADING_BITANGENT_FLIPPED != 0;
+        (t, if flipped { -1.0 } else { 1.0 })
+    } else {
+        let (dpdu, dpdv) = uv_derivatives(tri, a)?;
+        (
+            dpdu,
+            if base.cross(dpdu).dot(dpdv) < 0.0 {
+                -1.0
+            } else {
+                1.0
+            },
+        )
+    };
+    // Made orthogonal to the normal; a tangent (nearly) along it orients nothing.
+    let across = along - base * base.dot(along);
+    let enough = across.length_squared() > MIN_TANGENT_SHARE * along.length_squared();
+    if !enough {
+        return None; // also where the tangent is not finite
+    }
+    let t = across.normalize();
+    Some((t, base.cross(t) * handedness))
 }
 
 /// dp/du and dp/dv of triangle `tri` under its texture coordinates; none where the
@@ -790,20 +824,81 @@ mod tests {
         let lean = Vec3::new(0.6, 0.0, 0.8);
         // u along +x, v along +y: the map's x is +x.
         let (tri, a) = mapped([0.0, 0.0, 1.0, 0.0, 0.0, 1.0]);
-        let n = normal_mapped(&tri, &a, Vec3::Z, texel(lean), 1.0);
+        let n = normal_mapped(&tri, &a, 0.0, 0.0, Vec3::Z, texel(lean), 1.0);
         assert!((n - lean).length() < 1e-5, "{n}");
-        let n = normal_mapped(&tri, &a, Vec3::Z, texel(Vec3::new(0.0, 0.6, 0.8)), 1.0);
+        let n = normal_mapped(
+            &tri,
+            &a,
+            0.0,
+            0.0,
+            Vec3::Z,
+            texel(Vec3::new(0.0, 0.6, 0.8)),
+            1.0,
+        );
         assert!((n - Vec3::new(0.0, 0.6, 0.8)).length() < 1e-5, "{n}");
         // Mirrored in u (u grows along −x): the map's x leans towards −x, its y still +y.
         let (tri, a) = mapped([0.0, 0.0, -1.0, 0.0, 0.0, 1.0]);
-        let n = normal_mapped(&tri, &a, Vec3::Z, texel(lean), 1.0);
+        let n = normal_mapped(&tri, &a, 0.0, 0.0, Vec3::Z, texel(lean), 1.0);
         assert!((n - Vec3::new(-0.6, 0.0, 0.8)).length() < 1e-5, "{n}");
-        let n = normal_mapped(&tri, &a, Vec3::Z, texel(Vec3::new(0.0, 0.6, 0.8)), 1.0);
+        let n = normal_mapped(
+            &tri,
+            &a,
+            0.0,
+            0.0,
+            Vec3::Z,
+            texel(Vec3::new(0.0, 0.6, 0.8)),
+            1.0,
+        );
         assert!((n - Vec3::new(0.0, 0.6, 0.8)).length() < 1e-5, "{n}");
         // Scale 0 flattens the map; degenerate texture coordinates keep the normal.
-        assert!((normal_mapped(&tri, &a, Vec3::Z, texel(lean), 0.0) - Vec3::Z).length() < 1e-6);
+        assert!(
+            (normal_mapped(&tri, &a, 0.0, 0.0, Vec3::Z, texel(lean), 0.0) - Vec3::Z).length()
+                < 1e-6
+        );
         let (tri, a) = mapped([0.5; 6]);
-        assert_eq!(normal_mapped(&tri, &a, Vec3::Z, texel(lean), 1.0), Vec3::Z);
+        assert_eq!(
+            normal_mapped(&tri, &a, 0.0, 0.0, Vec3::Z, texel(lean), 1.0),
+            Vec3::Z
+        );
+    }
+
+    #[test]
+    fn file_tangents_orient_the_normal_map() {
+        // Texture coordinates say x is along +x; the file's tangent says +y, and wins.
+        let (tri, mut a) = mapped([0.0, 0.0, 1.0, 0.0, 0.0, 1.0]);
+        a.tangents = [crate::types::encode_unit(Vec3::Y); 3];
+        a.flags |= SHADING_TANGENTS;
+        let lean = Vec3::new(0.6, 0.0, 0.8);
+        let n = normal_mapped(&tri, &a, 0.3, 0.3, Vec3::Z, texel(lean), 1.0);
+        assert!((n - Vec3::new(0.0, 0.6, 0.8)).length() < 1e-4, "{n}");
+        // The bitangent is base × tangent = −x; w = −1 flips it to +x.
+        let up = Vec3::new(0.0, 0.6, 0.8);
+        let n = normal_mapped(&tri, &a, 0.3, 0.3, Vec3::Z, texel(up), 1.0);
+        assert!((n - Vec3::new(-0.6, 0.0, 0.8)).length() < 1e-4, "{n}");
+        a.flags |= SHADING_BITANGENT_FLIPPED;
+        let n = normal_mapped(&tri, &a, 0.3, 0.3, Vec3::Z, texel(up), 1.0);
+        assert!((n - Vec3::new(0.6, 0.0, 0.8)).length() < 1e-4, "{n}");
+        // A tangent along the normal gives no frame: the normal stays.
+        a.tangents = [crate::types::encode_unit(Vec3::Z); 3];
+        assert_eq!(
+            normal_mapped(&tri, &a, 0.3, 0.3, Vec3::Z, texel(lean), 1.0),
+            Vec3::Z
+        );
+    }
+
+    #[test]
+    fn unit_vectors_survive_their_one_word_encoding() {
+        let mut rng = crate::rng::Rng::from_seed(7);
+        for _ in 0..10_000 {
+            let v = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - Vec3::ONE;
+            let Some(v) = v.try_normalize() else { continue };
+            let back = crate::types::decode_unit(crate::types::encode_unit(v));
+            assert!((back - v).length() < 2e-4, "{v} -> {back}");
+        }
+        for v in [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z] {
+            let back = crate::types::decode_unit(crate::types::encode_unit(v));
+            assert!((back - v).length() < 1e-4, "{v} -> {back}");
+        }
     }
 
     #[test]

@@ -227,12 +227,33 @@ pub struct TriangleShading {
     pub normals: [f32; 9],
     pub uvs: [f32; 6],
     pub colours: [u32; 3],
+    /// The corners' tangents (along +u), octahedron-encoded (`encode_unit`); with
+    /// `SHADING_TANGENTS` they, not the triangle's dp/du, orient its normal map.
+    pub tangents: [u32; 3],
     pub flags: u32,
 }
 
 pub const SHADING_NORMALS: u32 = 1;
 pub const SHADING_UVS: u32 = 2;
 pub const SHADING_COLOURS: u32 = 4;
+/// The file gave tangents (glTF `TANGENT`).
+pub const SHADING_TANGENTS: u32 = 8;
+/// The bitangent is −(normal × tangent) (glTF's tangent w = −1: a mirrored mapping).
+pub const SHADING_BITANGENT_FLIPPED: u32 = 16;
+
+/// A unit vector in one word: its octahedral map (`sampling::octahedral_encode`) with 16
+/// bits per coordinate; `decode_unit` gives it back to within ~1e-4.
+pub fn encode_unit(v: Vec3) -> u32 {
+    let (x, y) = crate::sampling::octahedral_encode(v);
+    let q = |c: f32| ((c.clamp(-1.0, 1.0) * 0.5 + 0.5) * 65535.0 + 0.5) as u32;
+    q(x) | (q(y) << 16)
+}
+
+/// The unit vector of `encode_unit`'s word.
+pub fn decode_unit(w: u32) -> Vec3 {
+    let c = |bits: u32| bits as f32 / 65535.0 * 2.0 - 1.0;
+    crate::sampling::octahedral_decode(c(w & 0xffff), c(w >> 16))
+}
 
 impl TriangleShading {
     pub fn normal(&self, k: usize) -> Vec3 {
@@ -251,6 +272,9 @@ impl TriangleShading {
     }
     pub fn colour(&self, k: usize) -> Vec3 {
         crate::texture::rgbe_to_linear(self.colours[k]).truncate()
+    }
+    pub fn tangent(&self, k: usize) -> Vec3 {
+        decode_unit(self.tangents[k])
     }
 }
 
@@ -443,7 +467,7 @@ const _: () = {
     assert!(core::mem::size_of::<FrameParams>() == 272);
     assert!(core::mem::size_of::<GBufferTexel>() == 48);
     assert!(core::mem::size_of::<Light>() == 16);
-    assert!(core::mem::size_of::<TriangleShading>() == 76);
+    assert!(core::mem::size_of::<TriangleShading>() == 88);
     assert!(core::mem::size_of::<TextureInfo>() == 16);
     assert!(core::mem::size_of::<FrameParams>().is_multiple_of(16));
 };
