@@ -684,3 +684,58 @@ fn a_spot_light_is_a_disc_with_a_warning() {
         "{got} vs {expected}"
     );
 }
+
+/// alphaMode BLEND is coverage: a black cover of alpha ¼ over a lit floor, with the sun
+/// straight above, lets through ¾ of the sunlight and ¾ of the camera's rays, so the floor
+/// looks (¾)² as bright as without it; alpha 1 hides it, alpha 0 is not there.
+#[test]
+fn blended_surfaces_let_through_what_they_do_not_cover() {
+    let d = dir("gltf_blend");
+    let quad = |y: f32, half: f32| {
+        vec![
+            [-half, y, -half],
+            [-half, y, half],
+            [half, y, half],
+            [half, y, -half],
+        ]
+    };
+    let indices = vec![0, 1, 2, 0, 2, 3];
+    let mean_under = |alpha: f32| {
+        let path = d.join(format!("blend_{alpha}.gltf"));
+        write_gltf(
+            &path,
+            &[
+                ("floor".into(), 0, quad(0.0, 1.0), indices.clone()),
+                ("cover".into(), 1, quad(0.5, 1.5), indices.clone()),
+            ],
+            &[
+                r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.5,0.5,0.5,1],"metallicFactor":0},"extensions":{"KHR_materials_specular":{"specularFactor":0}}}"#.to_string(),
+                format!(r#"{{"pbrMetallicRoughness":{{"baseColorFactor":[0,0,0,{alpha}],"metallicFactor":0}},"alphaMode":"BLEND","extensions":{{"KHR_materials_specular":{{"specularFactor":0}}}}}}"#),
+            ],
+            [0.0; 3],
+            "",
+        );
+        let args = common::floor_view(
+            32,
+            64,
+            &[
+                "--integrator",
+                "mis",
+                "--max-depth",
+                "2",
+                "--sun",
+                "0,1,0",
+                "--seed",
+                "3",
+            ],
+        );
+        let (image, stderr) = render(&path, &d.join("blend.exr"), &common::strs(&args));
+        assert!(!stderr.contains("not supported"), "{stderr}");
+        image.mean().x
+    };
+    let open = mean_under(0.0);
+    assert!(open > 0.0);
+    let quarter = mean_under(0.25) / open;
+    assert!((quarter - 0.5625).abs() < 0.02, "{quarter} vs 0.5625");
+    assert!(mean_under(1.0) < 1e-3 * open);
+}

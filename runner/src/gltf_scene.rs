@@ -187,7 +187,6 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
     let mut texture_of_image: Vec<Option<Option<u32>>> = vec![None; images.len()];
     let mut data_of_image: Vec<Option<Option<u32>>> = vec![None; images.len()];
     let mut invisible: Vec<bool> = Vec::new();
-    let mut blended = 0;
     let mut spots = 0;
     let mut materials: Vec<Material> = Vec::new();
     let mut ignored: Vec<&str> = Vec::new();
@@ -197,16 +196,15 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
         let mut mat = material(&m);
         let pbr = m.pbr_metallic_roughness();
         // alphaMode MASK: the base colour's alpha (times its factor) against the cutoff, as
-        // a cut-out mask thresholded per texel. BLEND is drawn the same way at ½ (a path
-        // tracer has no blending order; partial transparency is not kept: one warning).
+        // a cut-out mask thresholded per texel. BLEND: that alpha is the share of the
+        // surface that is there (a coverage mask, solid with probability alpha), which is
+        // what blending one layer over what lies behind it means, in any order.
         let cutoff = match m.alpha_mode() {
             gltf::material::AlphaMode::Opaque => None,
             gltf::material::AlphaMode::Mask => Some(m.alpha_cutoff().unwrap_or(0.5)),
-            gltf::material::AlphaMode::Blend => {
-                blended += 1;
-                Some(0.5)
-            }
+            gltf::material::AlphaMode::Blend => None,
         };
+        let blend = m.alpha_mode() == gltf::material::AlphaMode::Blend;
         // Each image is decoded once per way it is read: as sRGB colour (base colour,
         // emission) or as linear data (normal, metallic-roughness).
         let mut texture = |image: usize, linear: bool, what: &str| {
@@ -262,6 +260,29 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                 *p = image::Rgba([255, 255, 255, if solid { 255 } else { 0 }]);
             }
             mat.opacity_texture = crate::textures::add(&mut attributes, &mask);
+        }
+        if blend {
+            let factor = pbr.base_color_factor()[3].clamp(0.0, 1.0);
+            let coverage = |a: u8| (a as f32 * factor).round() as u8;
+            let mask = match base_image.and_then(|i| rgba8(&images[i])) {
+                Some(mut rgba) => {
+                    for p in rgba.pixels_mut() {
+                        *p = image::Rgba([255, 255, 255, coverage(p[3])]);
+                    }
+                    Some(rgba)
+                }
+                // The factor alone: one texel, wherever it is read.
+                None if factor < 1.0 => Some(image::RgbaImage::from_pixel(
+                    1,
+                    1,
+                    image::Rgba([255, 255, 255, coverage(255)]),
+                )),
+                None => None,
+            };
+            if let Some(mask) = mask {
+                mat.opacity_texture = crate::textures::add(&mut attributes, &mask);
+                attributes.coverage_masks.push(mat.opacity_texture);
+            }
         }
         // KHR_texture_transform: one map per material, baked into its primitives' texture
         // coordinates: the base colour's, else the first texture's that has one (normal
@@ -411,6 +432,11 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                     })
                     .collect()
             });
+            // A mask is read at texture coordinates: a primitive without them reads the
+            // mask's first texel (a constant coverage has only that one).
+            let masked = material_index
+                .is_some_and(|i| materials[i].opacity_texture != kernels::types::INVALID);
+            let uvs = uvs.or_else(|| masked.then(|| vec![Vec2::ZERO; positions.len()]));
             // TANGENT: directions like positions' (not normals'); a mirroring transform
             // turns the bitangent's side.
             let mirror = if flips { -1.0 } else { 1.0 };
@@ -490,12 +516,6 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
         warnings.push(format!(
             "'{name}': {spots} spot light(s) drawn as small discs facing along the spot: \
              the intensity on the axis is kept, the cone's angles are not (a cosine falloff)"
-        ));
-    }
-    if blended > 0 {
-        warnings.push(format!(
-            "'{name}': {blended} material(s) of alpha mode BLEND drawn as MASK at ½ (partial \
-             transparency is not supported yet)"
         ));
     }
     ignored.sort_unstable();

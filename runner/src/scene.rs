@@ -54,6 +54,9 @@ pub struct SurfaceAttributes {
     pub texels: Vec<u32>,
     /// The environment map's importance distribution (see `kernels::env`).
     pub env_distribution: Vec<f32>,
+    /// The opacity textures that hold coverage fractions (glTF BLEND), not cut-outs:
+    /// traversal finds their surfaces solid with probability alpha (`ALPHA_BLENDED`).
+    pub coverage_masks: Vec<u32>,
 }
 
 impl SurfaceAttributes {
@@ -128,12 +131,15 @@ impl SurfaceAttributes {
     fn mark_cutouts(&self, triangles: &mut [Triangle], materials: &[Material]) {
         let invalid = kernels::types::INVALID;
         for t in triangles {
-            t.shading = t.shading_index(); // the flag is derived here, never taken as given
-            let masked = materials[t.material as usize].opacity_texture != invalid;
+            t.shading = t.shading_index(); // the flags are derived here, never taken as given
+            let mask = materials[t.material as usize].opacity_texture;
             let has_uvs = t.shading != invalid
                 && self.shading[t.shading as usize].flags & kernels::types::SHADING_UVS != 0;
-            if masked && has_uvs {
+            if mask != invalid && has_uvs {
                 t.shading |= kernels::types::ALPHA_TESTED;
+                if self.coverage_masks.contains(&mask) {
+                    t.shading |= kernels::types::ALPHA_BLENDED;
+                }
             }
         }
     }

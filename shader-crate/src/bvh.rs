@@ -6,6 +6,7 @@ use crate::glam::Vec2;
 use crate::glam::Vec3;
 use crate::intersect::{intersect_aabb, Hit, Ray, TriangleTester};
 use crate::math::vec3;
+use crate::rng::pcg_hash;
 use crate::sampling::orthonormal_basis;
 use crate::texture::sample_bilinear;
 use crate::types::cwbvh_meta::{self, FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
@@ -58,7 +59,8 @@ pub struct SceneBuffers<'a> {
 
 /// What traversal needs to test cut-outs (alpha masks): a hit on a triangle flagged
 /// `ALPHA_TESTED` counts only where its material's mask is at least ½ at the hit's texture
-/// coordinates, so leaves are holes for camera, bounce and shadow rays alike.
+/// coordinates, so leaves are holes for camera, bounce and shadow rays alike; with
+/// `ALPHA_BLENDED` the mask is a coverage fraction (`coverage_threshold`).
 #[derive(Copy, Clone)]
 pub struct Cutouts<'a> {
     pub materials: &'a [Material],
@@ -86,8 +88,22 @@ impl Cutouts<'_> {
         }
         let mask = self.materials[tri.material as usize].opacity_texture;
         let a = self.shading[tri.shading_index() as usize];
-        sample_bilinear(self.textures, self.texels, mask, a.uv_at(b1, b2)).w >= ALPHA_CUTOFF
+        let alpha = sample_bilinear(self.textures, self.texels, mask, a.uv_at(b1, b2)).w;
+        if tri.alpha_blended() {
+            alpha > coverage_threshold(tri, b1, b2)
+        } else {
+            alpha >= ALPHA_CUTOFF
+        }
     }
+}
+
+/// A number in [0, 1) that a coverage mask must exceed at barycentrics (b1, b2) of `tri`:
+/// a hash of the hit point on the triangle, so the rays that meet a surface of alpha a
+/// find it solid a share a of the time, each ray deciding independently of its order in
+/// traversal (the same point always decides the same way).
+fn coverage_threshold(tri: &Triangle, b1: f32, b2: f32) -> f32 {
+    let h = pcg_hash(b1.to_bits() ^ pcg_hash(b2.to_bits() ^ pcg_hash(tri.shading)));
+    (h >> 8) as f32 * (1.0 / 16_777_216.0)
 }
 
 impl<'a> SceneBuffers<'a> {

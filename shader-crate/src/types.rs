@@ -29,6 +29,11 @@ pub struct Triangle {
 /// traversal tests at every hit (the rest of the field indexes its shading attributes,
 /// which then exist: the mask is read at the hit's texture coordinates).
 pub const ALPHA_TESTED: u32 = 1 << 31;
+/// The next bit: the mask is a coverage fraction (glTF alphaMode BLEND), not a cut-out. A
+/// hit is solid with probability alpha: where alpha exceeds a hash of the hit's
+/// barycentrics (hashed alpha testing, Wyman & McGuire 2017), so on average a surface of
+/// alpha 0.3 passes 70% of the rays that meet it, camera, bounce and shadow rays alike.
+pub const ALPHA_BLENDED: u32 = 1 << 30;
 
 impl Triangle {
     /// Index of the triangle's shading attributes (INVALID: none).
@@ -36,8 +41,13 @@ impl Triangle {
         if self.shading == INVALID {
             INVALID
         } else {
-            self.shading & !ALPHA_TESTED
+            self.shading & !(ALPHA_TESTED | ALPHA_BLENDED)
         }
+    }
+
+    /// Whether the mask traversal tests is a coverage fraction (`ALPHA_BLENDED`).
+    pub fn alpha_blended(&self) -> bool {
+        self.shading != INVALID && self.shading & ALPHA_BLENDED != 0
     }
 
     /// Whether traversal must test the material's cut-out mask at hits on this triangle.
