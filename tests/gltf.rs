@@ -444,13 +444,13 @@ fn extensions_the_loader_does_not_read_are_named() {
     // A file that uses clearcoat and sheen (not read) besides specular and volume (read):
     // one warning for each unread extension, none for the others.
     let d = dir("gltf_unread_extensions");
-    let corners = [
-        [-1.0f32, 0.0, -1.0],
-        [-1.0, 0.0, 1.0],
-        [1.0, 0.0, 1.0],
-        [1.0, 0.0, -1.0],
-    ];
-    let path = common::gltf_floor(&d, corners, &[], r#"{"pbrMetallicRoughness":{}}"#, &[]);
+    let path = common::gltf_floor(
+        &d,
+        common::FLOOR,
+        &[],
+        r#"{"pbrMetallicRoughness":{}}"#,
+        &[],
+    );
     let json = std::fs::read_to_string(&path).unwrap().replace(
         r#""extensionsUsed":["KHR_materials_specular"]"#,
         r#""extensionsUsed":["KHR_materials_specular","KHR_materials_volume","KHR_materials_clearcoat","KHR_materials_sheen"]"#,
@@ -490,24 +490,13 @@ fn transformed_quadrants(d: &Path, transform: &str) -> Vec<char> {
         })
     });
     quadrants.save(d.join("quadrants.png")).unwrap();
-    let corners = [
-        [-1.0f32, 0.0, -1.0],
-        [-1.0, 0.0, 1.0],
-        [1.0, 0.0, 1.0],
-        [1.0, 0.0, -1.0],
-    ];
-    // u along +x, v along +z: the top-down view shows v = 0 at the top.
-    let uvs: Vec<f32> = corners
-        .iter()
-        .flat_map(|c| [(c[0] + 1.0) / 2.0, (c[2] + 1.0) / 2.0])
-        .collect();
     let material = format!(
         r#"{{"pbrMetallicRoughness":{{"baseColorTexture":{{"index":0{transform}}},"metallicFactor":0}},"extensions":{{"KHR_materials_specular":{{"specularFactor":0}}}}}}"#
     );
     let scene = common::gltf_floor(
         d,
-        corners,
-        &[("TEXCOORD_0", "VEC2", uvs)],
+        common::FLOOR,
+        &[("TEXCOORD_0", "VEC2", common::floor_uvs())],
         &material,
         &["quadrants.png"],
     );
@@ -573,14 +562,8 @@ fn texture_transforms_offset_rotate_and_scale_the_texture() {
 /// (JSON members such as `"translation":[..]`), rendered from above with `mis`, direct
 /// light only, no sky. Returns the image and the render's stderr.
 fn lit_floor(d: &Path, light: &str, node: &str) -> (runner::output::Image, String) {
-    let corners = [
-        [-1.0f32, 0.0, -1.0],
-        [-1.0, 0.0, 1.0],
-        [1.0, 0.0, 1.0],
-        [1.0, 0.0, -1.0],
-    ];
     let material = r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.5,0.5,0.5,1],"metallicFactor":0},"extensions":{"KHR_materials_specular":{"specularFactor":0}}}"#;
-    let scene = common::gltf_floor(d, corners, &[], material, &[]);
+    let scene = common::gltf_floor(d, common::FLOOR, &[], material, &[]);
     let json = std::fs::read_to_string(&scene).unwrap();
     let json = json
         .replace(

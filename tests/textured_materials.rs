@@ -5,7 +5,7 @@
 //! scene written without the texture, with the factors the texel stands for.
 mod common;
 
-use common::{floor_view, gltf_floor, render_cpu, strs, tmp_dir as dir};
+use common::{floor_view, gltf_floor, render_cpu, strs, tmp_dir as dir, FLOOR};
 use glam::Vec3;
 
 /// The floor seen from above under a sun 45° up and a dim sky.
@@ -42,17 +42,8 @@ fn png(d: &std::path::Path, name: &str, texel: [u8; 4]) {
 /// The mean radiance of a glTF floor with texture coordinates whose material is
 /// `material` (JSON) and whose images are the PNG files `images`, seen from above.
 fn textured_floor(d: &std::path::Path, material: &str, images: &[&str]) -> Vec3 {
-    let corners = [
-        [-1.0f32, 0.0, -1.0],
-        [-1.0, 0.0, 1.0],
-        [1.0, 0.0, 1.0],
-        [1.0, 0.0, -1.0],
-    ];
-    let uvs: Vec<f32> = corners
-        .iter()
-        .flat_map(|c| [(c[0] + 1.0) / 2.0, (c[2] + 1.0) / 2.0])
-        .collect();
-    let scene = gltf_floor(d, corners, &[("TEXCOORD_0", "VEC2", uvs)], material, images);
+    let uvs = common::floor_uvs();
+    let scene = gltf_floor(d, FLOOR, &[("TEXCOORD_0", "VEC2", uvs)], material, images);
     let (image, stderr) = render_cpu(&scene, &d.join("floor.exr"), &strs(&floor_lit()));
     assert!(!stderr.contains("not supported"), "{stderr}");
     mean(&image)

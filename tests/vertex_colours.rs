@@ -2,7 +2,7 @@
 //! albedo, interpolated across each triangle.
 mod common;
 
-use common::{floor_view, gltf_floor, render_cpu, strs, tmp_dir as dir};
+use common::{floor_view, gltf_floor, render_cpu, strs, tmp_dir as dir, FLOOR};
 use glam::Vec3;
 
 /// The floor seen from above under a white sky: a Lambertian floor of albedo ρ under a
@@ -14,14 +14,6 @@ fn view() -> Vec<String> {
         &["--integrator", "nee", "--sky", "1,1,1", "--max-depth", "2"],
     )
 }
-
-/// The floor's corners: left (x = -1) at the image's left.
-const CORNERS: [[f32; 3]; 4] = [
-    [-1.0, 0.0, -1.0],
-    [-1.0, 0.0, 1.0],
-    [1.0, 0.0, 1.0],
-    [1.0, 0.0, -1.0],
-];
 
 /// Mean of pixel column `x` over the middle rows.
 fn column(image: &runner::output::Image, x: usize) -> Vec3 {
@@ -48,7 +40,7 @@ fn ply_colours_are_srgb_bytes_interpolated_across_the_floor() {
          property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n\
          element face 1\nproperty list uchar int vertex_indices\nend_header\n",
     );
-    for c in CORNERS {
+    for c in FLOOR {
         let rgb = if c[0] < 0.0 { "255 128 0" } else { "0 0 255" };
         ply += &format!("{} {} {} {rgb}\n", c[0], c[1], c[2]);
     }
@@ -73,7 +65,7 @@ fn obj_and_gltf_colours_multiply_the_albedo() {
     let d = dir("vertex_colours_obj_gltf");
     // OBJ: display values 0..1 after the position; Kd 0.5.
     let mut obj = String::from("mtllib floor.mtl\n");
-    for c in CORNERS {
+    for c in FLOOR {
         obj += &format!("v {} {} {} 1 0.5 0\n", c[0], c[1], c[2]);
     }
     obj += "usemtl m\nf 1 2 3 4\n";
@@ -90,7 +82,7 @@ fn obj_and_gltf_colours_multiply_the_albedo() {
     let colour = [0.2f32, 0.6, 0.9];
     let scene = gltf_floor(
         &d,
-        CORNERS,
+        FLOOR,
         &[("COLOR_0", "VEC3", colour.repeat(4))],
         r#"{"pbrMetallicRoughness":{"metallicFactor":0},"extensions":{"KHR_materials_specular":{"specularFactor":0}}}"#,
         &[],

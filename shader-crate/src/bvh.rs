@@ -837,45 +837,23 @@ mod tests {
 
     #[test]
     fn normal_maps_lean_along_the_texture_axes_mirrored_or_not() {
-        let lean = Vec3::new(0.6, 0.0, 0.8);
+        // The map at a triangle's first corner, on the normal +z, at strength `scale`.
+        let bend = |(tri, a): &(Triangle, TriangleShading), m: Vec3, scale: f32| {
+            normal_mapped(tri, a, 0.0, 0.0, Vec3::Z, texel(m), scale)
+        };
+        let (lean_u, lean_v) = (Vec3::new(0.6, 0.0, 0.8), Vec3::new(0.0, 0.6, 0.8));
         // u along +x, v along +y: the map's x is +x.
-        let (tri, a) = mapped([0.0, 0.0, 1.0, 0.0, 0.0, 1.0]);
-        let n = normal_mapped(&tri, &a, 0.0, 0.0, Vec3::Z, texel(lean), 1.0);
-        assert!((n - lean).length() < 1e-5, "{n}");
-        let n = normal_mapped(
-            &tri,
-            &a,
-            0.0,
-            0.0,
-            Vec3::Z,
-            texel(Vec3::new(0.0, 0.6, 0.8)),
-            1.0,
-        );
-        assert!((n - Vec3::new(0.0, 0.6, 0.8)).length() < 1e-5, "{n}");
+        let plain = mapped([0.0, 0.0, 1.0, 0.0, 0.0, 1.0]);
+        assert!((bend(&plain, lean_u, 1.0) - lean_u).length() < 1e-5);
+        assert!((bend(&plain, lean_v, 1.0) - lean_v).length() < 1e-5);
         // Mirrored in u (u grows along −x): the map's x leans towards −x, its y still +y.
-        let (tri, a) = mapped([0.0, 0.0, -1.0, 0.0, 0.0, 1.0]);
-        let n = normal_mapped(&tri, &a, 0.0, 0.0, Vec3::Z, texel(lean), 1.0);
+        let mirrored = mapped([0.0, 0.0, -1.0, 0.0, 0.0, 1.0]);
+        let n = bend(&mirrored, lean_u, 1.0);
         assert!((n - Vec3::new(-0.6, 0.0, 0.8)).length() < 1e-5, "{n}");
-        let n = normal_mapped(
-            &tri,
-            &a,
-            0.0,
-            0.0,
-            Vec3::Z,
-            texel(Vec3::new(0.0, 0.6, 0.8)),
-            1.0,
-        );
-        assert!((n - Vec3::new(0.0, 0.6, 0.8)).length() < 1e-5, "{n}");
+        assert!((bend(&mirrored, lean_v, 1.0) - lean_v).length() < 1e-5);
         // Scale 0 flattens the map; degenerate texture coordinates keep the normal.
-        assert!(
-            (normal_mapped(&tri, &a, 0.0, 0.0, Vec3::Z, texel(lean), 0.0) - Vec3::Z).length()
-                < 1e-6
-        );
-        let (tri, a) = mapped([0.5; 6]);
-        assert_eq!(
-            normal_mapped(&tri, &a, 0.0, 0.0, Vec3::Z, texel(lean), 1.0),
-            Vec3::Z
-        );
+        assert!((bend(&mirrored, lean_u, 0.0) - Vec3::Z).length() < 1e-6);
+        assert_eq!(bend(&mapped([0.5; 6]), lean_u, 1.0), Vec3::Z);
     }
 
     #[test]

@@ -138,6 +138,24 @@ pub fn strs(args: &[String]) -> Vec<&str> {
     args.iter().map(String::as_str).collect()
 }
 
+/// The 2 × 2 floor at y = 0 (normal +y) that `floor_view` looks down on, as `gltf_floor`
+/// takes it (triangles 0-1-2 and 0-2-3, counter-clockwise seen from above).
+pub const FLOOR: [[f32; 3]; 4] = [
+    [-1.0, 0.0, -1.0],
+    [-1.0, 0.0, 1.0],
+    [1.0, 0.0, 1.0],
+    [1.0, 0.0, -1.0],
+];
+
+/// `FLOOR`'s texture coordinates as glTF has them: u along +x, v along +z, so `floor_view`
+/// shows v = 0 at the top of the image.
+pub fn floor_uvs() -> Vec<f32> {
+    FLOOR
+        .iter()
+        .flat_map(|c| [(c[0] + 1.0) / 2.0, (c[2] + 1.0) / 2.0])
+        .collect()
+}
+
 /// Write `dir/floor.gltf` (and `floor.bin`): one quad on `corners` (two triangles, 0-1-2
 /// and 0-2-3) with float vertex attributes `attributes` (glTF name, accessor type, the four
 /// corners' values), material `material` (JSON) and external images `images` (file names,
