@@ -373,3 +373,49 @@ fn cutout_masks_are_holes_for_camera_and_shadow_rays() {
         );
     }
 }
+
+#[test]
+fn dissolve_is_the_share_of_the_surface_that_is_there() {
+    // The black sheet of `cutout_masks_are_holes_for_camera_and_shadow_rays`, now `d 0.25`
+    // (no map, and no texture coordinates on its face): a quarter of it is there, so ¾ of
+    // the sunlight reaches the floor below and ¾ of the camera's rays see it: (¾)² of the
+    // open floor's radiance, everywhere under the sheet. Glass (`illum 7`) ignores `d`.
+    let d = dir("surfaces_dissolve");
+    let radius = 1f32.to_radians();
+    let open =
+        0.5 / std::f32::consts::PI * 100.0 * 2.0 * std::f32::consts::PI * (1.0 - radius.cos());
+    std::fs::write(
+        d.join("d.mtl"),
+        "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl sheet\nKd 0 0 0\nd 0.25\n",
+    )
+    .unwrap();
+    let obj = "mtllib d.mtl\n\
+        v -5 0 -5\nv 5 0 -5\nv 5 0 5\nv -5 0 5\n\
+        v -1 1 -1\nv 1 1 -1\nv 1 1 1\nv -1 1 1\n\
+        usemtl floor\nf 1 4 3 2\n\
+        usemtl sheet\nf 5 8 7 6\n";
+    let scene = d.join("d.obj");
+    std::fs::write(&scene, obj).unwrap();
+    let args = [
+        "--integrator",
+        "nee",
+        "--spp",
+        "64",
+        "--sun",
+        "0,1,0",
+        "--sun-radiance",
+        "100,100,100",
+        "--sun-angle",
+        "2",
+    ];
+    let (image, stderr) = render(&scene, &d.join("d.exr"), &args);
+    assert!(!stderr.contains("d < 1"), "d is read: {stderr}");
+    let mut s = 0.0;
+    for y in 24..40 {
+        for x in 16..48 {
+            s += image.pixels[y * 64 + x].x;
+        }
+    }
+    let under = s / (16.0 * 32.0) / open;
+    assert!((under - 0.5625).abs() < 0.03, "{under} vs 0.5625");
+}

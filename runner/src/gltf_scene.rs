@@ -432,11 +432,11 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                     })
                     .collect()
             });
-            // A mask is read at texture coordinates: a primitive without them reads the
-            // mask's first texel (a constant coverage has only that one).
-            let masked = material_index
-                .is_some_and(|i| materials[i].opacity_texture != kernels::types::INVALID);
-            let uvs = uvs.or_else(|| masked.then(|| vec![Vec2::ZERO; positions.len()]));
+            // A mask is read at texture coordinates: a primitive without them can still
+            // read a constant one (BLEND by the factor alone).
+            let constant_mask = material_index
+                .is_some_and(|i| attributes.is_constant(materials[i].opacity_texture));
+            let uvs = uvs.or_else(|| constant_mask.then(|| vec![Vec2::ZERO; positions.len()]));
             // TANGENT: directions like positions' (not normals'); a mirroring transform
             // turns the bitangent's side.
             let mirror = if flips { -1.0 } else { 1.0 };

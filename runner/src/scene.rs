@@ -125,6 +125,14 @@ impl SurfaceAttributes {
         }
     }
 
+    /// Whether `texture` is a single texel (the same value at every texture coordinate,
+    /// so faces without coordinates can read it).
+    pub fn is_constant(&self, texture: u32) -> bool {
+        self.textures
+            .get(texture as usize)
+            .is_some_and(|t| t.width == 1 && t.height == 1)
+    }
+
     /// Flag the triangles whose material has a cut-out mask for the traversal's test
     /// (`kernels::types::ALPHA_TESTED`), for every loader alike. A mask needs the hit's
     /// texture coordinates: a triangle without them stays opaque. Call after `check`.
@@ -699,7 +707,8 @@ fn parse_obj(
                     }
                 })
             };
-            mtls.iter()
+            let mut materials: Vec<Material> = mtls
+                .iter()
                 .map(|m| {
                     let mut material = material_from_mtl(m);
                     let name = m.name.as_str();
@@ -748,7 +757,18 @@ fn parse_obj(
                     }
                     material
                 })
-                .collect()
+                .collect();
+            // `d` < 1 without a map: the same share covered everywhere (one texel).
+            for (material, m) in materials.iter_mut().zip(&mtls) {
+                if let Some(d) = dissolve_coverage(m).filter(|_| m.dissolve_texture.is_none()) {
+                    let alpha = (d * 255.0).round() as u8;
+                    let texel =
+                        image::RgbaImage::from_pixel(1, 1, image::Rgba([255, 255, 255, alpha]));
+                    material.opacity_texture = crate::textures::add(&mut attributes, &texel);
+                    attributes.coverage_masks.push(material.opacity_texture);
+                }
+            }
+            materials
         }
         Err(e) => {
             if models.iter().any(|m| m.mesh.material_id.is_some()) || text.contains("mtllib") {
@@ -761,6 +781,10 @@ fn parse_obj(
     };
     let default_material = materials.len() as u32;
     materials.push(Material::new(Vec3::splat(DEFAULT_ALBEDO), Vec3::ZERO));
+    let constant_mask: Vec<bool> = materials
+        .iter()
+        .map(|m| attributes.is_constant(m.opacity_texture))
+        .collect();
 
     let mut triangles = Vec::new();
     for model in &models {
@@ -825,6 +849,10 @@ fn parse_obj(
                     };
                     Some([uv(c[0])?, uv(c[1])?, uv(c[2])?])
                 });
+                // A mask is read at texture coordinates: faces without them can still read a
+                // constant one (`d` < 1).
+                let uvs = uvs
+                    .or_else(|| constant_mask[material as usize].then_some([glam::Vec2::ZERO; 3]));
                 // `v x y z r g b`: colours as 0..1 display (sRGB) values, as MeshLab and
                 // others write them.
                 let colours = (mesh.vertex_color.len() == mesh.positions.len()).then(|| {
@@ -972,11 +1000,20 @@ fn ignored_mtl_keys(m: &tobj::Material) -> Vec<String> {
             keys.push(key.to_string());
         }
     }
-    let glass = matches!(m.illumination_model, Some(4 | 6 | 7 | 9));
-    if m.dissolve.is_some_and(|d| d < 1.0) && !glass {
-        keys.push("d < 1 (transparency without a glass illum)".to_string());
+    if dissolve_coverage(m).is_some() && m.dissolve_texture.is_some() {
+        keys.push("d < 1 beside map_d (the map decides)".to_string());
     }
     keys
+}
+
+/// The share of a non-glass material's surface that is there, when its `d` (dissolve) says
+/// it is partly transparent: a coverage (`SurfaceAttributes::coverage_masks`), as glTF's
+/// BLEND. Glass (`illum 4, 6, 7, 9`) refracts instead and ignores `d`.
+fn dissolve_coverage(m: &tobj::Material) -> Option<f32> {
+    let glass = matches!(m.illumination_model, Some(4 | 6 | 7 | 9));
+    m.dissolve
+        .filter(|d| *d < 1.0 && !glass)
+        .map(|d| d.clamp(0.0, 1.0))
 }
 
 /// An MTL material on our BSDF family (documented in the README):
