@@ -218,3 +218,42 @@ fn mtl_statements_nothing_reads_are_named_once_each() {
     assert!(stderr.contains("Tf in 1 material(s)"), "{stderr}");
     assert!(!stderr.contains("Tr in"), "{stderr}");
 }
+
+/// KHR_materials_pbrSpecularGlossiness renders as its metallic-roughness twin: black
+/// specular is Lambertian diffuse, black diffuse with a bright specular a metal of that
+/// colour (roughness 1 − glossiness), specular 0.04 diffuse under a coat of index 1.5.
+#[test]
+fn specular_glossiness_materials_match_their_metallic_roughness_twins() {
+    let d = dir("textured_materials_specular_glossiness");
+    let sg = |diffuse: &str, specular: &str, glossiness: f32| {
+        textured_floor(
+            &d,
+            &format!(
+                r#"{{"extensions":{{"KHR_materials_pbrSpecularGlossiness":{{"diffuseFactor":{diffuse},"specularFactor":{specular},"glossinessFactor":{glossiness}}}}}}}"#
+            ),
+            &[],
+        )
+    };
+    let mr = |json: &str| textured_floor(&d, json, &[]);
+    close(
+        sg("[0.6,0.4,0.2,1]", "[0,0,0]", 0.5),
+        mr(
+            r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.6,0.4,0.2,1],"metallicFactor":0},"extensions":{"KHR_materials_specular":{"specularFactor":0}}}"#,
+        ),
+        "diffuse",
+    );
+    close(
+        sg("[0,0,0,1]", "[0.9,0.7,0.5]", 0.6),
+        mr(
+            r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.9,0.7,0.5,1],"metallicFactor":1,"roughnessFactor":0.4}}"#,
+        ),
+        "metal",
+    );
+    close(
+        sg("[0.6,0.4,0.2,1]", "[0.04,0.04,0.04]", 0.5),
+        mr(
+            r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.6,0.4,0.2,1],"metallicFactor":0,"roughnessFactor":0.5}}"#,
+        ),
+        "plastic",
+    );
+}

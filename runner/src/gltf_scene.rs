@@ -34,8 +34,9 @@ pub const MAX_GLTF_BYTES: u64 = 2 << 30;
 /// another gets one warning naming it (one it *requires* is refused by the importer).
 /// `KHR_materials_volume` is how glTF says a transmissive mesh is solid, which is what our
 /// dielectric always is.
-const READ_EXTENSIONS: [&str; 7] = [
+const READ_EXTENSIONS: [&str; 8] = [
     "KHR_lights_punctual",
+    "KHR_materials_pbrSpecularGlossiness",
     "KHR_materials_emissive_strength",
     "KHR_texture_transform",
     "KHR_materials_transmission",
@@ -85,6 +86,9 @@ fn rgba8(image: &gltf::image::Data) -> Option<image::RgbaImage> {
 
 /// One glTF material on our BSDF family (see the module documentation).
 fn material(m: &gltf::Material) -> Material {
+    if let Some(sg) = m.pbr_specular_glossiness() {
+        return specular_glossiness(m, &sg);
+    }
     let pbr = m.pbr_metallic_roughness();
     let [r, g, b, _] = pbr.base_color_factor();
     let base = Vec3::new(r, g, b).clamp(Vec3::ZERO, Vec3::ONE);
@@ -111,6 +115,34 @@ fn material(m: &gltf::Material) -> Material {
         material.specular = base.to_array();
         material.metallic = pbr.metallic_factor().clamp(0.0, 1.0);
     }
+    let strength = m.emissive_strength().unwrap_or(1.0);
+    let emission = Vec3::from(m.emissive_factor()) * strength;
+    if emission.is_finite() {
+        material.emission = emission.max(Vec3::ZERO).to_array();
+    }
+    material
+}
+
+/// A `KHR_materials_pbrSpecularGlossiness` material (older exporters, Sketchfab), which the
+/// specification prefers to the metallic-roughness fallback beside it: α = (1 − glossiness)²;
+/// black diffuse with a bright specular (≥ ½) is a conductor of that specular colour;
+/// otherwise diffuse under a dielectric coat whose index gives the specular's (luminance)
+/// reflectance at normal incidence, F0 = ((n − 1)/(n + 1))², and Lambertian diffuse where
+/// the specular is black. The specular-glossiness texture is not read (one warning).
+fn specular_glossiness(m: &gltf::Material, sg: &gltf::material::PbrSpecularGlossiness) -> Material {
+    let [r, g, b, _] = sg.diffuse_factor();
+    let diffuse = Vec3::new(r, g, b).clamp(Vec3::ZERO, Vec3::ONE);
+    let specular = Vec3::from(sg.specular_factor()).clamp(Vec3::ZERO, Vec3::ONE);
+    let alpha = (1.0 - sg.glossiness_factor().clamp(0.0, 1.0)).powi(2);
+    let f0 = specular.dot(Vec3::new(0.2126, 0.7152, 0.0722));
+    let mut material = if diffuse.max_element() <= 0.0 && f0 >= 0.5 {
+        Material::conductor(specular, alpha)
+    } else if f0 <= 0.0 {
+        Material::new(diffuse, Vec3::ZERO)
+    } else {
+        let root = f0.min(0.36).sqrt(); // n ≤ 4, the coat's range
+        Material::coated(diffuse, (1.0 + root) / (1.0 - root), alpha)
+    };
     let strength = m.emissive_strength().unwrap_or(1.0);
     let emission = Vec3::from(m.emissive_factor()) * strength;
     if emission.is_finite() {
@@ -225,9 +257,22 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                 }
             })
         };
-        let base_image = pbr
-            .base_color_texture()
-            .map(|i| i.texture().source().index());
+        // The base colour: specular-glossiness's diffuse where the material has it.
+        let sg = m.pbr_specular_glossiness();
+        let base_info = match &sg {
+            Some(sg) => sg.diffuse_texture(),
+            None => pbr.base_color_texture(),
+        };
+        let base_alpha = sg
+            .as_ref()
+            .map_or(pbr.base_color_factor()[3], |sg| sg.diffuse_factor()[3]);
+        if sg
+            .as_ref()
+            .is_some_and(|sg| sg.specular_glossiness_texture().is_some())
+        {
+            ignored.push("specular-glossiness textures");
+        }
+        let base_image = base_info.as_ref().map(|i| i.texture().source().index());
         if let Some(t) = base_image.and_then(|i| texture(i, false, "base colour texture")) {
             mat.albedo_texture = t;
         }
@@ -253,7 +298,7 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
             }
         }
         if let (Some(cutoff), Some(rgba)) = (cutoff, base_image.and_then(|i| rgba8(&images[i]))) {
-            let factor = pbr.base_color_factor()[3];
+            let factor = base_alpha;
             let mut mask = rgba;
             for p in mask.pixels_mut() {
                 let solid = p[3] as f32 / 255.0 * factor >= cutoff;
@@ -262,7 +307,7 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
             mat.opacity_texture = crate::textures::add(&mut attributes, &mask);
         }
         if blend {
-            let factor = pbr.base_color_factor()[3].clamp(0.0, 1.0);
+            let factor = base_alpha.clamp(0.0, 1.0);
             let coverage = |a: u8| (a as f32 * factor).round() as u8;
             let mask = match base_image.and_then(|i| rgba8(&images[i])) {
                 Some(mut rgba) => {
@@ -288,7 +333,7 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
         // coordinates: the base colour's, else the first texture's that has one (normal
         // textures carry theirs where the gltf crate does not read it; they follow).
         let infos = [
-            pbr.base_color_texture(),
+            base_info.clone(),
             pbr.metallic_roughness_texture(),
             m.emissive_texture(),
         ];
@@ -310,7 +355,7 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                 .unwrap_or(i.tex_coord())
         };
         let sets = [
-            pbr.base_color_texture().map(|i| set(&i)),
+            base_info.as_ref().map(set),
             m.normal_texture().map(|n| n.tex_coord()),
             pbr.metallic_roughness_texture().map(|i| set(&i)),
             m.emissive_texture().map(|i| set(&i)),
@@ -322,11 +367,7 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
         ));
         // Without a texture the factor's alpha alone decides: solid, or a hole everywhere
         // (its primitives are left out).
-        invisible.push(
-            cutoff.is_some_and(|c| {
-                pbr.base_color_texture().is_none() && pbr.base_color_factor()[3] < c
-            }),
-        );
+        invisible.push(cutoff.is_some_and(|c| base_info.is_none() && base_alpha < c));
         materials.push(mat);
     }
     // The specification's default material (white, metallic 1, roughness 1), added after
