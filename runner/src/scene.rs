@@ -426,6 +426,13 @@ fn normalise(text: &str) -> String {
     out
 }
 
+/// Whether `normalise` would change what tobj reads: a byte-order mark, a tab, or a
+/// comment after data (a `#` after a space). Line endings and trailing blanks tobj reads
+/// either way.
+fn needs_normalising(text: &str) -> bool {
+    text.starts_with('\u{feff}') || text.contains('\t') || text.contains(" #")
+}
+
 /// Parse MTL text (named `name` in messages) with tobj, after checking what tobj would
 /// panic on or silently misread: colour lines (Ka, Kd, Ks, Ke, Tf) need three numbers, and
 /// every number must be finite and radiances at most `MAX_RADIANCE`. Those are errors with
@@ -620,7 +627,9 @@ fn parse_obj(
     load_texture: impl Fn(&str) -> std::result::Result<image::RgbaImage, String>,
 ) -> Result<Scene> {
     let camera = parse_camera_hint(name, text)?;
-    let text = &normalise(text);
+    // Most files need none of `normalise`'s repairs: no second copy of a large text then.
+    let repaired = needs_normalising(text).then(|| normalise(text));
+    let text = repaired.as_deref().unwrap_or(text);
     check_lines(name, text)?;
     // An MTL error that must stop the load (it names its line) travels past tobj here.
     let mtl_error = std::cell::RefCell::new(None);
