@@ -722,3 +722,64 @@ fn blended_surfaces_let_through_what_they_do_not_cover() {
     assert!((quarter - 0.5625).abs() < 0.02, "{quarter} vs 0.5625");
     assert!(mean_under(1.0) < 1e-3 * open);
 }
+
+/// A file that *requires* an extension we cannot read (mesh compression: its geometry is
+/// not in the plain accessors) is refused with one `error:` naming the extension, no
+/// image; one that only *uses* it loads, with one warning.
+#[test]
+fn required_extensions_we_cannot_read_are_refused_by_name() {
+    let d = dir("gltf_required_extension");
+    let path = common::gltf_floor(
+        &d,
+        common::FLOOR,
+        &[],
+        r#"{"pbrMetallicRoughness":{}}"#,
+        &[],
+    );
+    let json = std::fs::read_to_string(&path).unwrap();
+    let out = d.join("refused.png");
+    let required = json.replace(
+        r#""extensionsUsed":["KHR_materials_specular"]"#,
+        r#""extensionsUsed":["KHR_materials_specular","KHR_draco_mesh_compression"],"extensionsRequired":["KHR_draco_mesh_compression"]"#,
+    );
+    std::fs::write(&path, &required).unwrap();
+    let run = common::runner(&[
+        "render",
+        "--backend",
+        "cpu",
+        "--scene",
+        path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--spp",
+        "1",
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success(), "{stderr}");
+    let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
+    assert!(
+        errors.len() == 1 && errors[0].contains("KHR_draco_mesh_compression"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+    // Only used (not required): the file loads, with one warning naming it.
+    let used = json.replace(
+        r#""extensionsUsed":["KHR_materials_specular"]"#,
+        r#""extensionsUsed":["KHR_materials_specular","KHR_draco_mesh_compression"]"#,
+    );
+    std::fs::write(&path, used).unwrap();
+    let (_, stderr) = render(
+        &path,
+        &out,
+        &["--width", "8", "--height", "8", "--spp", "1"],
+    );
+    assert_eq!(
+        stderr.matches("KHR_draco_mesh_compression").count(),
+        1,
+        "{stderr}"
+    );
+}
