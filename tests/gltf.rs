@@ -738,6 +738,7 @@ fn required_extensions_we_cannot_read_are_refused_by_name() {
     );
     let json = std::fs::read_to_string(&path).unwrap();
     let out = d.join("refused.png");
+    let _ = std::fs::remove_file(&out); // left by an earlier run in a kept target dir
     let required = json.replace(
         r#""extensionsUsed":["KHR_materials_specular"]"#,
         r#""extensionsUsed":["KHR_materials_specular","KHR_draco_mesh_compression"],"extensionsRequired":["KHR_draco_mesh_compression"]"#,
@@ -772,9 +773,10 @@ fn required_extensions_we_cannot_read_are_refused_by_name() {
         r#""extensionsUsed":["KHR_materials_specular","KHR_draco_mesh_compression"]"#,
     );
     std::fs::write(&path, used).unwrap();
+    let loaded = d.join("loaded.png");
     let (_, stderr) = render(
         &path,
-        &out,
+        &loaded,
         &["--width", "8", "--height", "8", "--spp", "1"],
     );
     assert_eq!(
