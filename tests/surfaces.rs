@@ -310,62 +310,86 @@ fn glass_mirror_and_rough_surfaces_agree_with_mitsuba() {
     }
 }
 
+/// Radiance of the grey floor (albedo ½) of `sheet_over_floor` in the open, under its sun
+/// (radiance 100 over a disk of radius r = 1°): ρ/π · L_sun · 2π(1 − cos r).
+fn sunlit_floor() -> f32 {
+    let radius = 1f32.to_radians();
+    0.5 / std::f32::consts::PI * 100.0 * 2.0 * std::f32::consts::PI * (1.0 - radius.cos())
+}
+
+/// A black sheet (MTL `sheet_lines` after `Kd 0 0 0`) at height 1 over a 10 × 10 grey floor,
+/// with texture coordinates on the sheet when `uvs`, seen from the default camera by `nee`
+/// at `spp` under a sun straight above (see `sunlit_floor`).
+fn sheet_over_floor(
+    d: &Path,
+    sheet_lines: &str,
+    uvs: bool,
+    spp: &str,
+) -> (runner::output::Image, String) {
+    let mtl = format!("newmtl floor\nKd 0.5 0.5 0.5\nnewmtl sheet\nKd 0 0 0\n{sheet_lines}\n");
+    std::fs::write(d.join("sheet.mtl"), mtl).unwrap();
+    let (texcoords, sheet_face) = if uvs {
+        ("vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n", "f 5/1 8/4 7/3 6/2")
+    } else {
+        ("", "f 5 8 7 6")
+    };
+    let obj = format!(
+        "mtllib sheet.mtl\n\
+         v -5 0 -5\nv 5 0 -5\nv 5 0 5\nv -5 0 5\n\
+         v -1 1 -1\nv 1 1 -1\nv 1 1 1\nv -1 1 1\n\
+         {texcoords}usemtl floor\nf 1 4 3 2\nusemtl sheet\n{sheet_face}\n"
+    );
+    let scene = d.join("sheet.obj");
+    std::fs::write(&scene, obj).unwrap();
+    let args = [
+        "--integrator",
+        "nee",
+        "--spp",
+        spp,
+        "--sun",
+        "0,1,0",
+        "--sun-radiance",
+        "100,100,100",
+        "--sun-angle",
+        "2",
+    ];
+    render(&scene, &d.join("sheet.exr"), &args)
+}
+
+/// Mean red radiance of rows 24..40 and columns `columns` of a 64 × 64 image.
+fn middle_rows_mean(image: &runner::output::Image, columns: std::ops::Range<usize>) -> f32 {
+    let mut s = 0.0;
+    for y in 24..40 {
+        for x in columns.clone() {
+            s += image.pixels[y * 64 + x].x;
+        }
+    }
+    s / (16 * columns.len()) as f32
+}
+
 #[test]
 fn cutout_masks_are_holes_for_camera_and_shadow_rays() {
     // A black plane at height 1 over a grey floor (albedo 0.5), under a sun straight above.
     // The plane's `map_d` is a 2×1 mask: transparent on the side of u < ½, opaque on the
     // other. Through the hole the camera sees the floor, lit by the sun through the same
-    // hole: L = ρ/π · L_sun · 2π(1 − cos r). Were camera rays blocked there, the black plane
-    // would show; were shadow rays, the floor would be dark. The other side shows the
-    // plane (black). Both mask kinds: a grey-level image and an image with an alpha channel.
+    // hole: `sunlit_floor`. Were camera rays blocked there, the black plane would show;
+    // were shadow rays, the floor would be dark. The other side shows the plane (black).
+    // Both mask kinds: a grey-level image and an image with an alpha channel.
     let d = dir("surfaces_cutout");
     let grey = image::GrayImage::from_raw(2, 1, vec![0, 255]).unwrap();
     grey.save(d.join("mask_grey.png")).unwrap();
     let rgba =
         image::RgbaImage::from_raw(2, 1, vec![255, 255, 255, 0, 255, 255, 255, 255]).unwrap();
     rgba.save(d.join("mask_alpha.png")).unwrap();
-    let radius = 1f32.to_radians();
-    let expected =
-        0.5 / std::f32::consts::PI * 100.0 * 2.0 * std::f32::consts::PI * (1.0 - radius.cos());
+    let expected = sunlit_floor();
     for mask in ["mask_grey.png", "mask_alpha.png"] {
-        let mtl = format!("newmtl floor\nKd 0.5 0.5 0.5\nnewmtl sheet\nKd 0 0 0\nmap_d {mask}\n");
-        std::fs::write(d.join("cutout.mtl"), mtl).unwrap();
-        let obj = "mtllib cutout.mtl\n\
-            v -5 0 -5\nv 5 0 -5\nv 5 0 5\nv -5 0 5\n\
-            v -1 1 -1\nv 1 1 -1\nv 1 1 1\nv -1 1 1\n\
-            vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
-            usemtl floor\nf 1 4 3 2\n\
-            usemtl sheet\nf 5/1 8/4 7/3 6/2\n";
-        let scene = d.join("cutout.obj");
-        std::fs::write(&scene, obj).unwrap();
-        let (image, stderr) = render(
-            &scene,
-            &d.join("cutout.exr"),
-            &[
-                "--integrator",
-                "nee",
-                "--spp",
-                "16",
-                "--sun",
-                "0,1,0",
-                "--sun-radiance",
-                "100,100,100",
-                "--sun-angle",
-                "2",
-            ],
-        );
+        let (image, stderr) = sheet_over_floor(&d, &format!("map_d {mask}"), true, "16");
         assert!(!stderr.contains("map_d"), "map_d is read: {stderr}");
-        // Mean of the middle rows in the left and right quarters of the 64×64 image.
-        let side = |x0: usize| {
-            let mut s = 0.0;
-            for y in 24..40 {
-                for x in x0..x0 + 12 {
-                    s += image.pixels[y * 64 + x].x;
-                }
-            }
-            s / (16.0 * 12.0)
-        };
-        let (a, b) = (side(2), side(50));
+        // The middle rows in the left and right quarters of the image.
+        let (a, b) = (
+            middle_rows_mean(&image, 2..14),
+            middle_rows_mean(&image, 50..62),
+        );
         let (hole, solid) = if a > b { (a, b) } else { (b, a) };
         assert!(
             (hole / expected - 1.0).abs() < 0.02 && solid < 0.01 * expected,
@@ -381,41 +405,8 @@ fn dissolve_is_the_share_of_the_surface_that_is_there() {
     // the sunlight reaches the floor below and ¾ of the camera's rays see it: (¾)² of the
     // open floor's radiance, everywhere under the sheet. Glass (`illum 7`) ignores `d`.
     let d = dir("surfaces_dissolve");
-    let radius = 1f32.to_radians();
-    let open =
-        0.5 / std::f32::consts::PI * 100.0 * 2.0 * std::f32::consts::PI * (1.0 - radius.cos());
-    std::fs::write(
-        d.join("d.mtl"),
-        "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl sheet\nKd 0 0 0\nd 0.25\n",
-    )
-    .unwrap();
-    let obj = "mtllib d.mtl\n\
-        v -5 0 -5\nv 5 0 -5\nv 5 0 5\nv -5 0 5\n\
-        v -1 1 -1\nv 1 1 -1\nv 1 1 1\nv -1 1 1\n\
-        usemtl floor\nf 1 4 3 2\n\
-        usemtl sheet\nf 5 8 7 6\n";
-    let scene = d.join("d.obj");
-    std::fs::write(&scene, obj).unwrap();
-    let args = [
-        "--integrator",
-        "nee",
-        "--spp",
-        "64",
-        "--sun",
-        "0,1,0",
-        "--sun-radiance",
-        "100,100,100",
-        "--sun-angle",
-        "2",
-    ];
-    let (image, stderr) = render(&scene, &d.join("d.exr"), &args);
+    let (image, stderr) = sheet_over_floor(&d, "d 0.25", false, "64");
     assert!(!stderr.contains("d < 1"), "d is read: {stderr}");
-    let mut s = 0.0;
-    for y in 24..40 {
-        for x in 16..48 {
-            s += image.pixels[y * 64 + x].x;
-        }
-    }
-    let under = s / (16.0 * 32.0) / open;
+    let under = middle_rows_mean(&image, 16..48) / sunlit_floor();
     assert!((under - 0.5625).abs() < 0.03, "{under} vs 0.5625");
 }
