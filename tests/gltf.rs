@@ -439,23 +439,31 @@ fn alpha_mask_materials_are_cut_out() {
     }
 }
 
+/// `common::gltf_floor` of a default material whose file also names `extensions` (the
+/// inside of a JSON list) as used, and as required too when `required`. Returns its path.
+fn floor_naming_extensions(d: &Path, extensions: &str, required: bool) -> PathBuf {
+    let path = common::gltf_floor(d, common::FLOOR, &[], r#"{"pbrMetallicRoughness":{}}"#, &[]);
+    let mut named = format!(r#""extensionsUsed":["KHR_materials_specular",{extensions}]"#);
+    if required {
+        named += &format!(r#","extensionsRequired":[{extensions}]"#);
+    }
+    let json = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace(r#""extensionsUsed":["KHR_materials_specular"]"#, &named);
+    std::fs::write(&path, json).unwrap();
+    path
+}
+
 #[test]
 fn extensions_the_loader_does_not_read_are_named() {
     // A file that uses clearcoat and sheen (not read) besides specular and volume (read):
     // one warning for each unread extension, none for the others.
     let d = dir("gltf_unread_extensions");
-    let path = common::gltf_floor(
+    let path = floor_naming_extensions(
         &d,
-        common::FLOOR,
-        &[],
-        r#"{"pbrMetallicRoughness":{}}"#,
-        &[],
+        r#""KHR_materials_volume","KHR_materials_clearcoat","KHR_materials_sheen""#,
+        false,
     );
-    let json = std::fs::read_to_string(&path).unwrap().replace(
-        r#""extensionsUsed":["KHR_materials_specular"]"#,
-        r#""extensionsUsed":["KHR_materials_specular","KHR_materials_volume","KHR_materials_clearcoat","KHR_materials_sheen"]"#,
-    );
-    std::fs::write(&path, json).unwrap();
     let (_, stderr) = render(
         &path,
         &d.join("out.png"),
@@ -729,21 +737,10 @@ fn blended_surfaces_let_through_what_they_do_not_cover() {
 #[test]
 fn required_extensions_we_cannot_read_are_refused_by_name() {
     let d = dir("gltf_required_extension");
-    let path = common::gltf_floor(
-        &d,
-        common::FLOOR,
-        &[],
-        r#"{"pbrMetallicRoughness":{}}"#,
-        &[],
-    );
-    let json = std::fs::read_to_string(&path).unwrap();
+    let draco = r#""KHR_draco_mesh_compression""#;
+    let path = floor_naming_extensions(&d, draco, true);
     let out = d.join("refused.png");
     let _ = std::fs::remove_file(&out); // left by an earlier run in a kept target dir
-    let required = json.replace(
-        r#""extensionsUsed":["KHR_materials_specular"]"#,
-        r#""extensionsUsed":["KHR_materials_specular","KHR_draco_mesh_compression"],"extensionsRequired":["KHR_draco_mesh_compression"]"#,
-    );
-    std::fs::write(&path, &required).unwrap();
     let run = common::runner(&[
         "render",
         "--backend",
@@ -768,11 +765,7 @@ fn required_extensions_we_cannot_read_are_refused_by_name() {
     );
     assert!(!out.exists());
     // Only used (not required): the file loads, with one warning naming it.
-    let used = json.replace(
-        r#""extensionsUsed":["KHR_materials_specular"]"#,
-        r#""extensionsUsed":["KHR_materials_specular","KHR_draco_mesh_compression"]"#,
-    );
-    std::fs::write(&path, used).unwrap();
+    let path = floor_naming_extensions(&d, draco, false);
     let loaded = d.join("loaded.png");
     let (_, stderr) = render(
         &path,
