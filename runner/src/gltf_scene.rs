@@ -86,9 +86,20 @@ fn rgba8(image: &gltf::image::Data) -> Option<image::RgbaImage> {
 
 /// One glTF material on our BSDF family (see the module documentation).
 fn material(m: &gltf::Material) -> Material {
-    if let Some(sg) = m.pbr_specular_glossiness() {
-        return specular_glossiness(m, &sg);
+    let mut material = match m.pbr_specular_glossiness() {
+        Some(sg) => specular_glossiness(&sg),
+        None => metallic_roughness(m),
+    };
+    let strength = m.emissive_strength().unwrap_or(1.0);
+    let emission = Vec3::from(m.emissive_factor()) * strength;
+    if emission.is_finite() {
+        material.emission = emission.max(Vec3::ZERO).to_array();
     }
+    material
+}
+
+/// A metallic-roughness material (the module documentation's mapping), without emission.
+fn metallic_roughness(m: &gltf::Material) -> Material {
     let pbr = m.pbr_metallic_roughness();
     let [r, g, b, _] = pbr.base_color_factor();
     let base = Vec3::new(r, g, b).clamp(Vec3::ZERO, Vec3::ONE);
@@ -115,11 +126,6 @@ fn material(m: &gltf::Material) -> Material {
         material.specular = base.to_array();
         material.metallic = pbr.metallic_factor().clamp(0.0, 1.0);
     }
-    let strength = m.emissive_strength().unwrap_or(1.0);
-    let emission = Vec3::from(m.emissive_factor()) * strength;
-    if emission.is_finite() {
-        material.emission = emission.max(Vec3::ZERO).to_array();
-    }
     material
 }
 
@@ -129,26 +135,21 @@ fn material(m: &gltf::Material) -> Material {
 /// otherwise diffuse under a dielectric coat whose index gives the specular's (luminance)
 /// reflectance at normal incidence, F0 = ((n − 1)/(n + 1))², and Lambertian diffuse where
 /// the specular is black. The specular-glossiness texture is not read (one warning).
-fn specular_glossiness(m: &gltf::Material, sg: &gltf::material::PbrSpecularGlossiness) -> Material {
+/// Without emission (`material` adds it).
+fn specular_glossiness(sg: &gltf::material::PbrSpecularGlossiness) -> Material {
     let [r, g, b, _] = sg.diffuse_factor();
     let diffuse = Vec3::new(r, g, b).clamp(Vec3::ZERO, Vec3::ONE);
     let specular = Vec3::from(sg.specular_factor()).clamp(Vec3::ZERO, Vec3::ONE);
     let alpha = (1.0 - sg.glossiness_factor().clamp(0.0, 1.0)).powi(2);
     let f0 = specular.dot(Vec3::new(0.2126, 0.7152, 0.0722));
-    let mut material = if diffuse.max_element() <= 0.0 && f0 >= 0.5 {
+    if diffuse.max_element() <= 0.0 && f0 >= 0.5 {
         Material::conductor(specular, alpha)
     } else if f0 <= 0.0 {
         Material::new(diffuse, Vec3::ZERO)
     } else {
         let root = f0.min(0.36).sqrt(); // n ≤ 4, the coat's range
         Material::coated(diffuse, (1.0 + root) / (1.0 - root), alpha)
-    };
-    let strength = m.emissive_strength().unwrap_or(1.0);
-    let emission = Vec3::from(m.emissive_factor()) * strength;
-    if emission.is_finite() {
-        material.emission = emission.max(Vec3::ZERO).to_array();
     }
-    material
 }
 
 /// Load a glTF 2.0 file.
@@ -297,36 +298,34 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                 mat.emission_texture = t;
             }
         }
-        if let (Some(cutoff), Some(rgba)) = (cutoff, base_image.and_then(|i| rgba8(&images[i]))) {
-            let factor = base_alpha;
-            let mut mask = rgba;
-            for p in mask.pixels_mut() {
-                let solid = p[3] as f32 / 255.0 * factor >= cutoff;
-                *p = image::Rgba([255, 255, 255, if solid { 255 } else { 0 }]);
-            }
-            mat.opacity_texture = crate::textures::add(&mut attributes, &mask);
-        }
-        if blend {
-            let factor = base_alpha.clamp(0.0, 1.0);
-            let coverage = |a: u8| (a as f32 * factor).round() as u8;
+        // The mask of MASK or BLEND, texel by texel from the base colour's alpha × factor:
+        // solid or a hole against the cutoff (MASK), the share covered (BLEND). A BLEND
+        // factor without a texture is one texel, wherever it is read.
+        if cutoff.is_some() || blend {
+            let mask_texel = |a: u8| match cutoff {
+                Some(c) if a as f32 / 255.0 * base_alpha >= c => 255,
+                Some(_) => 0,
+                None => (a as f32 * base_alpha.clamp(0.0, 1.0)).round() as u8,
+            };
             let mask = match base_image.and_then(|i| rgba8(&images[i])) {
                 Some(mut rgba) => {
                     for p in rgba.pixels_mut() {
-                        *p = image::Rgba([255, 255, 255, coverage(p[3])]);
+                        *p = image::Rgba([255, 255, 255, mask_texel(p[3])]);
                     }
                     Some(rgba)
                 }
-                // The factor alone: one texel, wherever it is read.
-                None if factor < 1.0 => Some(image::RgbaImage::from_pixel(
+                None if blend && base_alpha < 1.0 => Some(image::RgbaImage::from_pixel(
                     1,
                     1,
-                    image::Rgba([255, 255, 255, coverage(255)]),
+                    image::Rgba([255, 255, 255, mask_texel(255)]),
                 )),
                 None => None,
             };
             if let Some(mask) = mask {
                 mat.opacity_texture = crate::textures::add(&mut attributes, &mask);
-                attributes.coverage_masks.push(mat.opacity_texture);
+                if blend {
+                    attributes.coverage_masks.push(mat.opacity_texture);
+                }
             }
         }
         // KHR_texture_transform: one map per material, baked into its primitives' texture
@@ -579,18 +578,8 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
 
 /// The diagonal of the box around the triangles and the lights (1 for a single light).
 fn extent(triangles: &[Triangle], lights: &[PointLight]) -> f32 {
-    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-    let points = triangles
-        .iter()
-        .flat_map(|t| {
-            let (a, b, c) = t.vertices();
-            [a, b, c]
-        })
-        .chain(lights.iter().map(|l| l.position));
-    for p in points {
-        lo = lo.min(p);
-        hi = hi.max(p);
-    }
+    let points = crate::scene::corners(triangles).chain(lights.iter().map(|l| l.position));
+    let (lo, hi) = crate::scene::bounds_of(points);
     let diagonal = (hi - lo).length();
     if diagonal > 0.0 && diagonal.is_finite() {
         diagonal

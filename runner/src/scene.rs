@@ -289,15 +289,7 @@ impl Scene {
     }
 
     pub fn bounds(&self) -> (Vec3, Vec3) {
-        let mut lo = Vec3::splat(f32::INFINITY);
-        let mut hi = Vec3::splat(f32::NEG_INFINITY);
-        for t in &self.triangles {
-            for p in [t.p0, t.p1, t.p2] {
-                lo = lo.min(Vec3::from(p));
-                hi = hi.max(Vec3::from(p));
-            }
-        }
-        (lo, hi)
+        bounds_of(corners(&self.triangles))
     }
 
     /// Whether every material is Lambertian and untextured and no vertex has a colour (the
@@ -318,6 +310,21 @@ impl Scene {
         let (lo, hi) = self.bounds();
         (hi - lo).length()
     }
+}
+
+/// Every corner of `triangles`.
+pub fn corners(triangles: &[Triangle]) -> impl Iterator<Item = Vec3> + '_ {
+    triangles
+        .iter()
+        .flat_map(|t| [t.p0, t.p1, t.p2].map(Vec3::from))
+}
+
+/// The box (lowest, highest corner) around `points`; inverted (+∞, −∞) when there are none.
+pub fn bounds_of(points: impl Iterator<Item = Vec3>) -> (Vec3, Vec3) {
+    points.fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(p), hi.max(p)),
+    )
 }
 
 /// The triangles without exact duplicates: the same three vertices (in any order) and the
