@@ -654,16 +654,7 @@ pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
             if m.normal_texture != INVALID {
                 let texel = sample_bilinear(scene.textures, scene.texels, m.normal_texture, s.uv);
                 shading = if m.normal_map_kind == NORMAL_MAP_HEIGHT {
-                    // The height's slopes by differences one texel apart.
-                    let info = scene.textures[m.normal_texture as usize];
-                    let step = Vec2::new(1.0 / info.width as f32, 1.0 / info.height as f32);
-                    let height = |uv: Vec2| {
-                        sample_bilinear(scene.textures, scene.texels, m.normal_texture, uv).x
-                    };
-                    let slope = Vec2::new(
-                        (height(s.uv + Vec2::new(step.x, 0.0)) - texel.x) / step.x,
-                        (height(s.uv + Vec2::new(0.0, step.y)) - texel.x) / step.y,
-                    );
+                    let slope = height_slope(scene, m.normal_texture, s.uv, texel.x);
                     bump_mapped(&tri, &a, base, slope * m.normal_scale)
                 } else {
                     normal_mapped(&tri, &a, b1, b2, base, texel.truncate(), m.normal_scale)
@@ -683,6 +674,18 @@ pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
         }
     }
     s
+}
+
+/// The slope (∂h/∂u, ∂h/∂v) of height map `texture` at `uv`, where its value is `here`:
+/// differences one texel apart.
+fn height_slope(scene: &SceneBuffers, texture: u32, uv: Vec2, here: f32) -> Vec2 {
+    let info = scene.textures[texture as usize];
+    let step = Vec2::new(1.0 / info.width as f32, 1.0 / info.height as f32);
+    let height = |at: Vec2| sample_bilinear(scene.textures, scene.texels, texture, at).x;
+    Vec2::new(
+        (height(uv + Vec2::new(step.x, 0.0)) - here) / step.x,
+        (height(uv + Vec2::new(0.0, step.y)) - here) / step.y,
+    )
 }
 
 /// A shading normal closer than this cosine to the face's plane is not used: a normal map
