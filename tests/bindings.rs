@@ -120,7 +120,7 @@ fn every_entry_point_the_host_dispatches_exists() {
     let module = module_bindings();
     let mut names: Vec<&str> = RestirPass::ENTRY_POINTS
         .iter()
-        .map(|p| p.entry_point())
+        .flat_map(|p| [p.entry_point(false), p.entry_point(true)])
         .collect();
     for kernel in Integrator::ALL.into_iter().flat_map(Integrator::kernels) {
         if let Kernel::Image { entry_point, .. } = kernel {

@@ -251,7 +251,7 @@ fn temporal_reuse_rejects_disoccluded_pixels() {
     let gbuf = |p: &FrameParams, rays: &mut u32| -> Vec<_> {
         (0..h)
             .flat_map(|y| (0..w).map(move |x| (x, y)))
-            .map(|(x, y)| restir::primary_hit(&ks, p, x, y, rays))
+            .map(|(x, y)| restir::primary_hit::<false>(&ks, p, x, y, rays))
             .collect()
     };
     let (g0, g1) = (gbuf(&p0, &mut rays), gbuf(&p1, &mut rays));
@@ -259,7 +259,7 @@ fn temporal_reuse_rejects_disoccluded_pixels() {
         |p: &FrameParams, g: &[kernels::types::GBufferTexel], rays: &mut u32| -> Vec<Reservoir> {
             g.iter()
                 .enumerate()
-                .map(|(i, t)| restir::initial_pass(&ks, p, t, i as u32, rays))
+                .map(|(i, t)| restir::initial_pass::<false>(&ks, p, t, i as u32, rays))
                 .collect()
         };
     let (r0, r1) = (res(&p0, &g0, &mut rays), res(&p1, &g1, &mut rays));
@@ -267,7 +267,7 @@ fn temporal_reuse_rejects_disoccluded_pixels() {
     for y in 0..h {
         for x in 0..w {
             let i = (y * w + x) as usize;
-            let out = restir::temporal_pass(&ks, &p1, &g1, &g0, &r1, &r0, x, y, &mut rays);
+            let out = restir::temporal_pass::<false>(&ks, &p1, &g1, &g0, &r1, &r0, x, y, &mut rays);
             let reprojected = restir::project(&p1.prev_camera, w, h, Vec3::from(g1[i].p));
             let took_history = out.m > r1[i].m;
             if let (true, Some((px, py))) = (on_wall(&g1[i]), reprojected) {

@@ -56,7 +56,8 @@ impl CpuBackend {
         }
     }
 
-    fn restir_frame(&mut self, params: &FrameParams) {
+    /// One ReSTIR frame, pass by pass, in the kernels' variant for plain scenes or not.
+    fn restir_frame<const PLAIN: bool>(&mut self, params: &FrameParams) {
         let n = self.accum.len();
         let st = self.restir.get_or_insert_with(|| {
             RestirState::new(
@@ -76,7 +77,7 @@ impl CpuBackend {
             match pass {
                 RestirPass::Primary => {
                     per_pixel(width, &mut g_cur, &mut self.ray_counts, |x, y, o, rays| {
-                        *o = restir::primary_hit(&scene, p, x, y, rays);
+                        *o = restir::primary_hit::<PLAIN>(&scene, p, x, y, rays);
                     })
                 }
                 RestirPass::Shade => {
@@ -87,7 +88,9 @@ impl CpuBackend {
                         &mut self.ray_counts,
                         |x, y, acc, rays| {
                             let i = (y * width + x) as usize;
-                            let l = restir::shade_pass(&scene, p, &g[i], &r[i], i as u32, rays);
+                            let l = restir::shade_pass::<PLAIN>(
+                                &scene, p, &g[i], &r[i], i as u32, rays,
+                            );
                             *acc = [acc[0] + l.x, acc[1] + l.y, acc[2] + l.z, acc[3] + 1.0];
                         },
                     );
@@ -101,12 +104,12 @@ impl CpuBackend {
                         let i = y * width + x;
                         *o = match pass {
                             RestirPass::Initial => {
-                                restir::initial_pass(&scene, p, &g[i as usize], i, rays)
+                                restir::initial_pass::<PLAIN>(&scene, p, &g[i as usize], i, rays)
                             }
-                            RestirPass::Temporal => restir::temporal_pass(
+                            RestirPass::Temporal => restir::temporal_pass::<PLAIN>(
                                 &scene, p, g, g_prev, res_in, res_prev, x, y, rays,
                             ),
-                            _ => restir::spatial_pass(&scene, p, g, res_in, x, y, rays),
+                            _ => restir::spatial_pass::<PLAIN>(&scene, p, g, res_in, x, y, rays),
                         };
                     });
                     st.reservoirs[sl.res_out] = out;
@@ -127,9 +130,16 @@ impl Backend for CpuBackend {
     fn pass(&mut self, integrator: Integrator, params: &FrameParams) -> Result<f64> {
         let start = Instant::now();
         let plain = crate::integrator::plain_scene(self.scene.all_diffuse(), params);
-        let Kernel::Image { pixel, .. } = integrator.kernel(plain) else {
-            self.restir_frame(params);
-            return Ok(start.elapsed().as_secs_f64() * 1e3);
+        let pixel = match integrator.kernel(plain) {
+            Kernel::Image { pixel, .. } => pixel,
+            Kernel::Restir { plain: true } => {
+                self.restir_frame::<true>(params);
+                return Ok(start.elapsed().as_secs_f64() * 1e3);
+            }
+            Kernel::Restir { plain: false } => {
+                self.restir_frame::<false>(params);
+                return Ok(start.elapsed().as_secs_f64() * 1e3);
+            }
         };
         let scene = self.scene.kernel();
         per_pixel(

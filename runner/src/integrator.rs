@@ -36,8 +36,9 @@ pub enum Kernel {
         entry_point: &'static str,
         pixel: PixelFn,
     },
-    /// The ReSTIR frame: a schedule of passes (`restir::RestirPass`).
-    Restir,
+    /// The ReSTIR frame: a schedule of passes (`restir::RestirPass`), in their variant
+    /// for plain scenes or the general one.
+    Restir { plain: bool },
 }
 
 impl Integrator {
@@ -91,7 +92,13 @@ impl Integrator {
                     image("entry::ris_diffuse_main", path::ris_pixel::<true>),
                 ],
             ),
-            Integrator::Restir => ("restir", [Kernel::Restir; 2]),
+            Integrator::Restir => (
+                "restir",
+                [
+                    Kernel::Restir { plain: false },
+                    Kernel::Restir { plain: true },
+                ],
+            ),
         }
     }
 

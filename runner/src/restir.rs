@@ -27,13 +27,20 @@ impl RestirPass {
         }
     }
 
-    pub fn entry_point(self) -> &'static str {
-        match self {
-            RestirPass::Primary => "entry::restir_primary",
-            RestirPass::Initial => "entry::restir_initial",
-            RestirPass::Temporal => "entry::restir_temporal",
-            RestirPass::Spatial(_) => "entry::restir_spatial",
-            RestirPass::Shade => "entry::restir_shade",
+    /// The pass's SPIR-V entry point: its variant for plain scenes (see
+    /// `integrator::plain_scene`) or the general one.
+    pub fn entry_point(self, plain: bool) -> &'static str {
+        let [general, plain_variant] = match self {
+            RestirPass::Primary => ["entry::restir_primary", "entry::restir_primary_plain"],
+            RestirPass::Initial => ["entry::restir_initial", "entry::restir_initial_plain"],
+            RestirPass::Temporal => ["entry::restir_temporal", "entry::restir_temporal_plain"],
+            RestirPass::Spatial(_) => ["entry::restir_spatial", "entry::restir_spatial_plain"],
+            RestirPass::Shade => ["entry::restir_shade", "entry::restir_shade_plain"],
+        };
+        if plain {
+            plain_variant
+        } else {
+            general
         }
     }
 

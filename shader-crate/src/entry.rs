@@ -83,7 +83,71 @@ image_kernel!(nee_diffuse_main, path::nee_pixel::<true>);
 image_kernel!(mis_diffuse_main, path::mis_pixel::<true>);
 image_kernel!(ris_diffuse_main, path::ris_pixel::<true>);
 
-kernel!(restir_primary, |scene,
+/// Declares ReSTIR's five passes (`restir.rs`) under the given names, for any scene
+/// (`PLAIN` false) or for plain ones (true).
+macro_rules! restir_kernels {
+    ($plain:literal, $primary:ident, $initial:ident, $temporal:ident, $spatial:ident, $shade:ident) => {
+        kernel!($primary, |scene,
+                           params,
+                           x,
+                           y,
+                           i,
+                           rays,
+                           accum,
+                           restir: g_cur,
+                           g_prev,
+                           res_in,
+                           res_out,
+                           res_prev| {
+            g_cur[i] = restir::primary_hit::<$plain>(&scene, params, x, y, &mut rays);
+        });
+        kernel!($initial, |scene,
+                           params,
+                           x,
+                           y,
+                           i,
+                           rays,
+                           accum,
+                           restir: g_cur,
+                           g_prev,
+                           res_in,
+                           res_out,
+                           res_prev| {
+            res_out[i] =
+                restir::initial_pass::<$plain>(&scene, params, &g_cur[i], i as u32, &mut rays);
+        });
+        kernel!($temporal, |scene,
+                            params,
+                            x,
+                            y,
+                            i,
+                            rays,
+                            accum,
+                            restir: g_cur,
+                            g_prev,
+                            res_in,
+                            res_out,
+                            res_prev| {
+            res_out[i] = restir::temporal_pass::<$plain>(
+                &scene, params, g_cur, g_prev, res_in, res_prev, x, y, &mut rays,
+            );
+        });
+        kernel!($spatial, |scene,
+                           params,
+                           x,
+                           y,
+                           i,
+                           rays,
+                           accum,
+                           restir: g_cur,
+                           g_prev,
+                           res_in,
+                           res_out,
+                           res_prev| {
+            res_out[i] =
+                restir::spatial_pass::<$plain>(&scene, params, g_cur, res_in, x, y, &mut rays);
+        });
+        kernel!($shade, |scene,
                          params,
                          x,
                          y,
@@ -95,67 +159,30 @@ kernel!(restir_primary, |scene,
                          res_in,
                          res_out,
                          res_prev| {
-    g_cur[i] = restir::primary_hit(&scene, params, x, y, &mut rays);
-});
-kernel!(restir_initial, |scene,
-                         params,
-                         x,
-                         y,
-                         i,
-                         rays,
-                         accum,
-                         restir: g_cur,
-                         g_prev,
-                         res_in,
-                         res_out,
-                         res_prev| {
-    res_out[i] = restir::initial_pass(&scene, params, &g_cur[i], i as u32, &mut rays);
-});
-kernel!(restir_temporal, |scene,
-                          params,
-                          x,
-                          y,
-                          i,
-                          rays,
-                          accum,
-                          restir: g_cur,
-                          g_prev,
-                          res_in,
-                          res_out,
-                          res_prev| {
-    res_out[i] = restir::temporal_pass(
-        &scene, params, g_cur, g_prev, res_in, res_prev, x, y, &mut rays,
-    );
-});
-kernel!(restir_spatial, |scene,
-                         params,
-                         x,
-                         y,
-                         i,
-                         rays,
-                         accum,
-                         restir: g_cur,
-                         g_prev,
-                         res_in,
-                         res_out,
-                         res_prev| {
-    res_out[i] = restir::spatial_pass(&scene, params, g_cur, res_in, x, y, &mut rays);
-});
-kernel!(restir_shade, |scene,
-                       params,
-                       x,
-                       y,
-                       i,
-                       rays,
-                       accum,
-                       restir: g_cur,
-                       g_prev,
-                       res_in,
-                       res_out,
-                       res_prev| {
-    let l = restir::shade_pass(&scene, params, &g_cur[i], &res_in[i], i as u32, &mut rays);
-    accum[i] += l.extend(1.0);
-});
+            let l = restir::shade_pass::<$plain>(
+                &scene, params, &g_cur[i], &res_in[i], i as u32, &mut rays,
+            );
+            accum[i] += l.extend(1.0);
+        });
+    };
+}
+
+restir_kernels!(
+    false,
+    restir_primary,
+    restir_initial,
+    restir_temporal,
+    restir_spatial,
+    restir_shade
+);
+restir_kernels!(
+    true,
+    restir_primary_plain,
+    restir_initial_plain,
+    restir_temporal_plain,
+    restir_spatial_plain,
+    restir_shade_plain
+);
 
 /// The viewer's present pass: a fullscreen triangle...
 #[spirv(vertex)]

@@ -277,7 +277,7 @@ impl GpuBackend {
 
     /// One ReSTIR frame: every pass is its own dispatch (and submit, since each may need
     /// its own parameters), timed individually.
-    fn submit_restir_frame(&mut self, params: &FrameParams) -> Result<()> {
+    fn submit_restir_frame(&mut self, params: &FrameParams, plain: bool) -> Result<()> {
         if self.restir.is_none() {
             // Their sizes were checked against the limits by `check_fits` in `new`.
             let g_size = self.pixels() * std::mem::size_of::<GBufferTexel>() as u64;
@@ -323,7 +323,12 @@ impl GpuBackend {
                 ],
             );
             let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
-            self.dispatch(&mut encoder, pass.entry_point(), Some(&group), k as u32);
+            self.dispatch(
+                &mut encoder,
+                pass.entry_point(plain),
+                Some(&group),
+                k as u32,
+            );
             self.ctx.queue.submit([encoder.finish()]);
         }
         self.in_flight = Some(InFlight {
@@ -342,8 +347,9 @@ impl GpuBackend {
         }
         let kernel = integrator.kernel(crate::integrator::plain_scene(self.all_diffuse, params));
         self.ctx.ensure_pipelines(kernel)?;
-        let Kernel::Image { entry_point, .. } = kernel else {
-            return self.submit_restir_frame(params);
+        let entry_point = match kernel {
+            Kernel::Image { entry_point, .. } => entry_point,
+            Kernel::Restir { plain } => return self.submit_restir_frame(params, plain),
         };
         let start = Instant::now();
         self.ctx

@@ -28,9 +28,9 @@ pub fn spirv_words() -> Vec<u32> {
 pub fn entry_points(kernel: Kernel) -> Vec<&'static str> {
     match kernel {
         Kernel::Image { entry_point, .. } => vec![entry_point],
-        Kernel::Restir => RestirPass::ENTRY_POINTS
+        Kernel::Restir { plain } => RestirPass::ENTRY_POINTS
             .iter()
-            .map(|p| p.entry_point())
+            .map(|p| p.entry_point(plain))
             .collect(),
     }
 }
@@ -102,7 +102,7 @@ impl Pipelines {
     pub fn ensure(&mut self, device: &wgpu::Device, kernel: Kernel) {
         let layout = match kernel {
             Kernel::Image { .. } => &self.image_pipeline_layout,
-            Kernel::Restir => &self.restir_pipeline_layout,
+            Kernel::Restir { .. } => &self.restir_pipeline_layout,
         };
         for name in entry_points(kernel) {
             if self.made.contains_key(name) {

@@ -19,10 +19,14 @@
 //! by an MIS weight saying how likely each reservoir was to produce it (confidence M times
 //! its target): the balance heuristic between this frame and the history in the temporal
 //! pass, defensive pairwise MIS between this pixel and each neighbour in the spatial pass.
+//! Every pass is generic over `PLAIN`, the promise of a plain scene (all Lambertian,
+//! untextured, no cut-outs, no map or sun; see `path::trace_path`): its variant carries
+//! none of the other BSDFs', textures' or infinite lights' code.
+//!
 //! The two modes, chosen at run time (`RESTIR_UNBIASED`), differ only in those weights'
 //! targets at other pixels: with visibility there (a shadow ray each: unbiased) or without
 //! (biased: slightly dark where neighbours do not see what this pixel sees).
-use crate::bsdf::BSDF_DIFFUSE;
+use crate::bsdf::{Bsdf, BSDF_DIFFUSE};
 use crate::bvh::{surface_hit, SceneBuffers, SurfaceHit};
 use crate::camera::jittered_ray;
 use crate::env::{escaped_radiance, unsampled_radiance};
@@ -80,7 +84,7 @@ fn has_hit(g: &GBufferTexel) -> bool {
 }
 
 /// Pass 1: the camera ray of this pixel (jittered per frame) and what it hits.
-pub fn primary_hit(
+pub fn primary_hit<const PLAIN: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
     x: u32,
@@ -90,7 +94,7 @@ pub fn primary_hit(
     let pixel = y * params.width + x;
     let mut rng = pass_rng(params, pixel, STREAM_PRIMARY);
     let ray = jittered_ray(&params.camera, params.width, params.height, x, y, &mut rng);
-    let hit = scene.closest_hit::<false>(&ray, f32::INFINITY);
+    let hit = scene.closest_hit::<PLAIN>(&ray, f32::INFINITY);
     *rays += 1;
     if !hit.is_hit() {
         return GBufferTexel {
@@ -100,7 +104,11 @@ pub fn primary_hit(
         };
     }
     let s = surface_hit(scene, &ray, &hit);
-    let bsdf = scene.bsdf(&s);
+    let bsdf = if PLAIN {
+        Bsdf::diffuse(scene.material_of(hit.prim).albedo())
+    } else {
+        scene.bsdf(&s)
+    };
     GBufferTexel {
         p: s.p.to_array(),
         depth: hit.t,
@@ -112,15 +120,27 @@ pub fn primary_hit(
 }
 
 /// Whether the surface point (p, n) sees the light sample of reservoir `r` (one shadow ray).
-fn sees(scene: &SceneBuffers, p: Vec3, n: Vec3, r: &Reservoir, rays: &mut u32) -> bool {
+fn sees<const PLAIN: bool>(
+    scene: &SceneBuffers,
+    p: Vec3,
+    n: Vec3,
+    r: &Reservoir,
+    rays: &mut u32,
+) -> bool {
     *rays += 1;
-    sample_visible::<false>(scene, r, p, n)
+    sample_visible::<PLAIN>(scene, r, p, n)
 }
 
 /// Keep reservoir `r` (owned by the surface point p, n) only if its owner sees the sample;
 /// else it keeps its M but no sample.
-fn keep_if_visible(scene: &SceneBuffers, r: &mut Reservoir, p: Vec3, n: Vec3, rays: &mut u32) {
-    if r.has_sample() && r.w > 0.0 && !sees(scene, p, n, r, rays) {
+fn keep_if_visible<const PLAIN: bool>(
+    scene: &SceneBuffers,
+    r: &mut Reservoir,
+    p: Vec3,
+    n: Vec3,
+    rays: &mut u32,
+) {
+    if r.has_sample() && r.w > 0.0 && !sees::<PLAIN>(scene, p, n, r, rays) {
         let m = r.m;
         *r = Reservoir::empty();
         r.m = m;
@@ -130,7 +150,7 @@ fn keep_if_visible(scene: &SceneBuffers, r: &mut Reservoir, p: Vec3, n: Vec3, ra
 /// Pass 2: RIS over the light candidates; the pick is tested for visibility (unless
 /// `RESTIR_VISIBILITY_REUSE` is off), so that neither this pixel's later frames nor its
 /// neighbours inherit a light it cannot see.
-pub fn initial_pass(
+pub fn initial_pass<const PLAIN: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
     g: &GBufferTexel,
@@ -140,25 +160,33 @@ pub fn initial_pass(
     if !has_hit(g) {
         return Reservoir::empty();
     }
-    let sp = shading_point(scene, g, vec3(params.camera.eye));
+    let sp = shading_point::<PLAIN>(scene, g, vec3(params.camera.eye));
     let mut rng = pass_rng(params, pixel, STREAM_INITIAL);
-    let mut r = initial_candidates::<false>(scene, params, &sp, &mut rng);
+    let mut r = initial_candidates::<PLAIN>(scene, params, &sp, &mut rng);
     r.finalize(r.m);
     if visibility_reuse(params) {
-        keep_if_visible(scene, &mut r, sp.p, sp.n, rays);
+        keep_if_visible::<PLAIN>(scene, &mut r, sp.p, sp.n, rays);
     }
     r
 }
 
 /// The surface of a G-buffer texel as the estimators see it, viewed from `eye` (the
 /// camera that made that G-buffer).
-fn shading_point(scene: &SceneBuffers, g: &GBufferTexel, eye: Vec3) -> ShadingPoint {
+fn shading_point<const PLAIN: bool>(
+    scene: &SceneBuffers,
+    g: &GBufferTexel,
+    eye: Vec3,
+) -> ShadingPoint {
     let p = vec3(g.p);
     ShadingPoint {
         p,
         n: vec3(g.n),
         wo: (eye - p).normalize(),
-        bsdf: scene.gbuffer_bsdf(g),
+        bsdf: if PLAIN {
+            Bsdf::diffuse(vec3(g.colour))
+        } else {
+            scene.gbuffer_bsdf(g)
+        },
     }
 }
 
@@ -204,7 +232,7 @@ pub fn project(camera: &Camera, width: u32, height: u32, p: Vec3) -> Option<(u32
 /// reservoir could not have produced the sample. `seen` skips the shadow ray when the
 /// sample is known (or, biased, assumed) to be visible there.
 #[allow(clippy::too_many_arguments)] // the texel, its eye and the sample, each needed
-fn target_with_visibility(
+fn target_with_visibility<const PLAIN: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
     g: &GBufferTexel,
@@ -216,9 +244,13 @@ fn target_with_visibility(
     if !has_hit(g) {
         return 0.0;
     }
-    let sp = shading_point(scene, g, eye);
-    let target = target_pdf_of::<false>(scene, params, r, &sp);
-    if target <= 0.0 || seen || !visibility_reuse(params) || sees(scene, sp.p, sp.n, r, rays) {
+    let sp = shading_point::<PLAIN>(scene, g, eye);
+    let target = target_pdf_of::<PLAIN>(scene, params, r, &sp);
+    if target <= 0.0
+        || seen
+        || !visibility_reuse(params)
+        || sees::<PLAIN>(scene, sp.p, sp.n, r, rays)
+    {
         target
     } else {
         0.0
@@ -229,7 +261,7 @@ fn target_with_visibility(
 /// `r`, as the MIS weights of a merge need it: with that pixel's visibility (one shadow ray)
 /// when unbiased; the biased mode skips the ray and so credits that pixel with samples it
 /// may not see (its one source of bias, slightly dark at shadow edges).
-fn target_elsewhere(
+fn target_elsewhere<const PLAIN: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
     g: &GBufferTexel,
@@ -237,7 +269,7 @@ fn target_elsewhere(
     r: &Reservoir,
     rays: &mut u32,
 ) -> f32 {
-    target_with_visibility(scene, params, g, eye, r, !unbiased(params), rays)
+    target_with_visibility::<PLAIN>(scene, params, g, eye, r, !unbiased(params), rays)
 }
 
 /// The share a/(a + b) of the first of two confidence-weighted targets a = Mᵢ p̂ᵢ(y) and
@@ -254,7 +286,7 @@ fn balance(a: f32, b: f32) -> f32 {
 /// light is a candidate only if this point sees it (visibility is part of the target here),
 /// so a hidden history sample never displaces this frame's own.
 #[allow(clippy::too_many_arguments)]
-pub fn temporal_pass(
+pub fn temporal_pass<const PLAIN: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
     g_cur: &[GBufferTexel],
@@ -288,13 +320,13 @@ pub fn temporal_pass(
 
     let mut rng = pass_rng(params, pixel as u32, STREAM_TEMPORAL);
     let eye = vec3(params.camera.eye);
-    let target_prev = target_with_visibility(scene, params, &g, eye, &prev, false, rays);
+    let target_prev = target_with_visibility::<PLAIN>(scene, params, &g, eye, &prev, false, rays);
     // Generalised RIS with the balance heuristic over the two reservoirs: each sample
     // weighed by how likely each reservoir was to produce it (Mᵢ p̂ᵢ, targets with
     // visibility: a reservoir never holds a sample its owner does not see).
     let cur_there = if cur.has_sample() && cur.w > 0.0 {
         let prev_eye = vec3(params.prev_camera.eye);
-        target_elsewhere(scene, params, &gp, prev_eye, &cur, rays)
+        target_elsewhere::<PLAIN>(scene, params, &gp, prev_eye, &cur, rays)
     } else {
         0.0
     };
@@ -310,7 +342,7 @@ pub fn temporal_pass(
 /// Pass 4: merge up to `spatial_neighbours` similar neighbours within `spatial_radius`.
 /// Its result is shown (and read by a further spatial pass), never kept as history.
 #[allow(clippy::too_many_arguments)]
-pub fn spatial_pass(
+pub fn spatial_pass<const PLAIN: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
     gbuffer: &[GBufferTexel],
@@ -326,7 +358,7 @@ pub fn spatial_pass(
         return own;
     }
     let eye = vec3(params.camera.eye);
-    let sp = shading_point(scene, &g, eye);
+    let sp = shading_point::<PLAIN>(scene, &g, eye);
     let mut rng = pass_rng(params, pixel, STREAM_SPATIAL + params.spatial_pass);
     // The neighbours: pixels in the disk about this pixel's centre that see a similar
     // surface (chosen by geometry alone, never by their samples).
@@ -351,14 +383,14 @@ pub fn spatial_pass(
         n_used += 1;
     }
     let mut out = Reservoir::empty();
-    let from_neighbour = pairwise_resample(
+    let from_neighbour = pairwise_resample::<PLAIN>(
         scene, params, gbuffer, input, &used, n_used, &own, &sp, &mut out, &mut rng, rays,
     );
     out.finalize(1.0);
     // A neighbour's sample may be hidden from here: test it, so that what this pass writes
     // (shown now, or read by a further spatial pass) holds only samples seen from here.
     if from_neighbour && visibility_reuse(params) {
-        keep_if_visible(scene, &mut out, sp.p, sp.n, rays);
+        keep_if_visible::<PLAIN>(scene, &mut out, sp.p, sp.n, rays);
     }
     out
 }
@@ -373,7 +405,7 @@ pub fn spatial_pass(
 /// sample its owner does not see: this pixel's sample at each neighbour takes a shadow
 /// ray. Returns whether the kept sample came from a neighbour.
 #[allow(clippy::too_many_arguments)]
-fn pairwise_resample(
+fn pairwise_resample<const PLAIN: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
     gbuffer: &[GBufferTexel],
@@ -410,12 +442,12 @@ fn pairwise_resample(
         let neighbour = input[q];
         let share = neighbour.m / m_sum;
         // The neighbour's sample: its own target (it sees it) against this pixel's.
-        let target_here = target_pdf_of::<false>(scene, params, &neighbour, sp);
+        let target_here = target_pdf_of::<PLAIN>(scene, params, &neighbour, sp);
         let mis = share * balance(m_rest * neighbour.target_pdf, m_c * target_here);
         from_neighbour |= out.resample(&neighbour, target_here, mis, rng.next_f32());
         if own_visible {
             let g = &gbuffer[q];
-            let there = target_elsewhere(scene, params, g, eye, own, rays);
+            let there = target_elsewhere::<PLAIN>(scene, params, g, eye, own, rays);
             mis_own += share * balance(m_c * own.target_pdf, m_rest * there);
         }
     }
@@ -427,7 +459,7 @@ fn pairwise_resample(
 
 /// Pass 5: the pixel's radiance for this frame. A non-finite result is dropped (0), as
 /// every integrator's sample loop drops non-finite samples.
-pub fn shade_pass(
+pub fn shade_pass<const PLAIN: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
     g: &GBufferTexel,
@@ -435,7 +467,7 @@ pub fn shade_pass(
     pixel: u32,
     rays: &mut u32,
 ) -> Vec3 {
-    let l = shaded_radiance(scene, params, g, r, pixel, rays);
+    let l = shaded_radiance::<PLAIN>(scene, params, g, r, pixel, rays);
     if l.is_finite() {
         l
     } else {
@@ -443,7 +475,7 @@ pub fn shade_pass(
     }
 }
 
-fn shaded_radiance(
+fn shaded_radiance<const PLAIN: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
     g: &GBufferTexel,
@@ -458,7 +490,7 @@ fn shaded_radiance(
     let material = scene.material_of(g.prim);
     let mut radiance = if g.front() && material.is_emissive() {
         // The G-buffer keeps the point, not its barycentrics: found again for a texture.
-        if material.emission_texture == INVALID {
+        if PLAIN || material.emission_texture == INVALID {
             material.emission()
         } else {
             let tri = scene.triangles[g.prim as usize];
@@ -472,27 +504,27 @@ fn shaded_radiance(
         return radiance;
     }
     let eye = vec3(params.camera.eye);
-    let sp = shading_point(scene, g, eye);
+    let sp = shading_point::<PLAIN>(scene, g, eye);
     radiance += if visibility_reuse(params) {
         // The passes keep only samples this pixel sees: no shadow ray needed.
-        unshadowed_reservoir::<false>(scene, params, r, &sp)
+        unshadowed_reservoir::<PLAIN>(scene, params, r, &sp)
     } else {
-        shade_reservoir::<false>(scene, params, r, &sp, rays)
+        shade_reservoir::<PLAIN>(scene, params, r, &sp, rays)
     };
     // Beyond the direct light of the emitters, the map and the sun: a bounce continued by
     // NEE path tracing gives the indirect light, at max_depth 2 a constant sky's light (as
     // NEE's bounce does), and what a glossy or specular surface reflects of the lights
     // (delta lobes are beyond light sampling; the continued path counts what they hit).
     let unsampled_sky = unsampled_radiance(params) != Vec3::ZERO;
-    if params.max_depth > 2 || unsampled_sky || sp.bsdf.kind != BSDF_DIFFUSE {
+    if params.max_depth > 2 || unsampled_sky || (!PLAIN && sp.bsdf.kind != BSDF_DIFFUSE) {
         let mut rng = pass_rng(params, pixel, STREAM_SHADE);
         let s = SurfaceHit::flat(sp.p, sp.n, g.front(), g.prim);
         let mut state = PathState::camera(crate::intersect::Ray::new(eye, -sp.wo));
         if state.bounce(&s, &sp.bsdf, params, &mut rng) {
             // The reservoir sampled the map and the sun here: what the bounce finds of
             // them is NEE's to weigh (not counted again).
-            state.env_sampled = infinite_probability::<false>(params) > 0.0;
-            radiance += trace_path::<false>(scene, params, state, &mut rng, NEE, rays);
+            state.env_sampled = infinite_probability::<PLAIN>(params) > 0.0;
+            radiance += trace_path::<PLAIN>(scene, params, state, &mut rng, NEE, rays);
         }
     }
     radiance
