@@ -6,7 +6,7 @@ use crate::glam::Vec2;
 use crate::glam::Vec3;
 use crate::intersect::{intersect_aabb, Hit, Ray, TriangleTester};
 use crate::math::vec3;
-use crate::rng::pcg_hash;
+use crate::rng::{pcg_hash, Rng};
 use crate::sampling::orthonormal_basis;
 use crate::texture::sample_bilinear;
 use crate::types::cwbvh_meta::{self, FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
@@ -139,6 +139,45 @@ impl<'a> SceneBuffers<'a> {
         #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
         return cwbvh_traverse::<PLAIN>(self.triangles, &cut, self.nodes, ray, t_max, true)
             .is_hit();
+    }
+
+    /// How many of `count` rays, made in turn by `next_ray`, meet nothing before `t_max`
+    /// (ambient occlusion). Over a CWBVH the rays run back to back in one traversal loop: a
+    /// GPU thread whose ray ends starts its next one at once instead of idling until the
+    /// slowest ray of its warp is done (the idea of Aila & Laine 2009's persistent threads,
+    /// within a thread), so a warp takes about the longest *sum* of its threads' rays, not
+    /// the sum of each ray's longest.
+    pub fn count_unoccluded<const PLAIN: bool, F: Fn(&mut Rng) -> Ray>(
+        &self,
+        count: u32,
+        t_max: f32,
+        rng: &mut Rng,
+        next_ray: F,
+    ) -> u32 {
+        #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
+        if !self.nodes.is_empty() && count > 0 {
+            let cut = self.cutouts();
+            let mut walk = CwbvhWalk::new(&next_ray(rng), t_max);
+            let (mut open, mut done) = (0u32, 0u32);
+            loop {
+                if walk.step::<PLAIN>(self.triangles, &cut, self.nodes, true) {
+                    open += !walk.hit.is_hit() as u32;
+                    done += 1;
+                    if done == count {
+                        break;
+                    }
+                    walk.restart(&next_ray(rng), t_max);
+                }
+            }
+            return open;
+        }
+        let mut open = 0u32;
+        let mut i = 0;
+        while i < count {
+            open += !self.any_hit::<PLAIN>(&next_ray(rng), t_max) as u32;
+            i += 1;
+        }
+        open
     }
 
     /// Whether the light point (q, nq) is visible from the surface point (p, n): one
@@ -511,61 +550,121 @@ pub fn cwbvh_traverse<const PLAIN: bool>(
     t_max: f32,
     any: bool,
 ) -> Hit {
-    let tester = TriangleTester::new(ray);
-    let inv_dir = safe_recip(ray.dir);
-    let mut hit = Hit::none(t_max);
     if nodes.is_empty() {
-        return hit;
+        return Hit::none(t_max);
     }
-    count!(TRAVERSALS);
-    let oct_inv = cwbvh_octant_inv(ray.dir);
-    let mut stack_base = [0u32; CWBVH_STACK];
-    let mut stack_bits = [0u32; CWBVH_STACK];
-    let mut sp = 0usize;
-    // The root is the only "interior child" of a virtual group at node 0.
-    let mut group_base = 0u32;
-    let mut group_bits = 1u32 << 31;
-    loop {
+    let mut walk = CwbvhWalk::new(ray, t_max);
+    while !walk.step::<PLAIN>(triangles, cutouts, nodes, any) {}
+    walk.hit
+}
+
+/// A CWBVH traversal in progress, advanced one node at a time by `step`, so that a caller
+/// with many rays can run them back to back in one loop (`SceneBuffers::count_unoccluded`).
+struct CwbvhWalk {
+    tester: TriangleTester,
+    origin: Vec3,
+    inv_dir: Vec3,
+    oct_inv: u32,
+    /// The nearest hit so far (t = the ray's end while none).
+    hit: Hit,
+    stack_base: [u32; CWBVH_STACK],
+    stack_bits: [u32; CWBVH_STACK],
+    sp: usize,
+    /// The node group being visited: child base index and hit bits.
+    group_base: u32,
+    group_bits: u32,
+}
+
+impl CwbvhWalk {
+    fn new(ray: &Ray, t_max: f32) -> Self {
+        let mut walk = Self {
+            tester: TriangleTester::new(ray),
+            origin: ray.origin,
+            inv_dir: Vec3::ZERO,
+            oct_inv: 0,
+            hit: Hit::none(t_max),
+            stack_base: [0u32; CWBVH_STACK],
+            stack_bits: [0u32; CWBVH_STACK],
+            sp: 0,
+            group_base: 0,
+            group_bits: 0,
+        };
+        walk.restart(ray, t_max);
+        walk
+    }
+
+    /// Begin `ray` at the root (the stack's contents are left, unread).
+    fn restart(&mut self, ray: &Ray, t_max: f32) {
+        count!(TRAVERSALS);
+        self.tester = TriangleTester::new(ray);
+        self.origin = ray.origin;
+        self.inv_dir = safe_recip(ray.dir);
+        self.oct_inv = cwbvh_octant_inv(ray.dir);
+        self.hit = Hit::none(t_max);
+        self.sp = 0;
+        // The root is the only "interior child" of a virtual group at node 0.
+        self.group_base = 0;
+        self.group_bits = 1u32 << 31;
+    }
+
+    /// Visit one node and test the triangles of it the ray hits; true when the walk is over
+    /// (`hit` final; with `any`, the first hit found ends it).
+    fn step<const PLAIN: bool>(
+        &mut self,
+        triangles: &[Triangle],
+        cutouts: &Cutouts,
+        nodes: &[CwBvhNode],
+        any: bool,
+    ) -> bool {
         let mut tri_base = 0u32;
         let mut tri_bits = 0u32;
-        if group_bits & INTERIOR_HITS != 0 {
-            let slot_bit = first_bit_high(group_bits);
-            group_bits &= !(1u32 << slot_bit);
+        if self.group_bits & INTERIOR_HITS != 0 {
+            let slot_bit = first_bit_high(self.group_bits);
+            self.group_bits &= !(1u32 << slot_bit);
             // Interior children are stored contiguously in slot order: the node's index is
             // the number of interior siblings (imask, the group's low byte) in lower slots.
-            let slot = (slot_bit - FIRST_INTERIOR_BIT) ^ oct_inv;
-            let relative = (group_bits & 0xff & !(0xffff_ffffu32 << slot)).count_ones();
-            let child = group_base + relative;
-            if group_bits & INTERIOR_HITS != 0 && sp < CWBVH_STACK {
-                stack_base[sp] = group_base;
-                stack_bits[sp] = group_bits;
-                sp += 1;
+            let slot = (slot_bit - FIRST_INTERIOR_BIT) ^ self.oct_inv;
+            let relative = (self.group_bits & 0xff & !(0xffff_ffffu32 << slot)).count_ones();
+            let child = self.group_base + relative;
+            if self.group_bits & INTERIOR_HITS != 0 && self.sp < CWBVH_STACK {
+                self.stack_base[self.sp] = self.group_base;
+                self.stack_bits[self.sp] = self.group_bits;
+                self.sp += 1;
             }
             count!(NODES);
             let node = nodes[child as usize];
-            let hits = cwbvh_node_hits(&node, ray.origin, inv_dir, oct_inv, hit.t);
-            group_base = node.child_base_idx;
-            group_bits = (hits & INTERIOR_HITS) | node.imask();
+            let hits = cwbvh_node_hits(&node, self.origin, self.inv_dir, self.oct_inv, self.hit.t);
+            self.group_base = node.child_base_idx;
+            self.group_bits = (hits & INTERIOR_HITS) | node.imask();
             tri_base = node.primitive_base_idx;
             tri_bits = hits & TRIANGLE_HITS;
         }
         while tri_bits != 0 {
             let k = first_bit_high(tri_bits);
             tri_bits &= !(1u32 << k);
-            if test_leaf::<PLAIN>(triangles, cutouts, &tester, tri_base + k, 1, &mut hit, any) {
-                return hit;
+            let tester = &self.tester;
+            if test_leaf::<PLAIN>(
+                triangles,
+                cutouts,
+                tester,
+                tri_base + k,
+                1,
+                &mut self.hit,
+                any,
+            ) {
+                return true;
             }
         }
-        if group_bits & INTERIOR_HITS == 0 {
-            if sp == 0 {
-                break;
+        if self.group_bits & INTERIOR_HITS == 0 {
+            if self.sp == 0 {
+                return true;
             }
-            sp -= 1;
-            group_base = stack_base[sp];
-            group_bits = stack_bits[sp];
+            self.sp -= 1;
+            self.group_base = self.stack_base[self.sp];
+            self.group_bits = self.stack_bits[self.sp];
         }
+        false
     }
-    hit
 }
 
 /// Shading frame at a hit: position, unit geometric normal turned towards the incoming

@@ -20,16 +20,10 @@ pub fn ambient_occlusion<const PLAIN: bool>(
     rng: &mut Rng,
 ) -> f32 {
     let origin = offset_ray_origin(p, n);
-    let mut open = 0u32;
-    let mut i = 0;
-    while i < rays {
+    let open = scene.count_unoccluded::<PLAIN, _>(rays, distance, rng, |rng| {
         let local = cosine_hemisphere(rng.next_f32(), rng.next_f32());
-        let ray = Ray::new(origin, local_to_world(local, n));
-        if !scene.any_hit::<PLAIN>(&ray, distance) {
-            open += 1;
-        }
-        i += 1;
-    }
+        Ray::new(origin, local_to_world(local, n))
+    });
     open as f32 / rays.max(1) as f32
 }
 
