@@ -99,7 +99,8 @@ fn params(scene: &Scene, w: u32, h: u32, seed: u32, max_depth: u32, flags: u32) 
         candidates: 8,
         restir_flags: flags,
         temporal_cap: 20.0,
-        spatial_neighbours: 5,
+        spatial_neighbours: runner::options::DEFAULT_SPATIAL_NEIGHBOURS,
+        disocclusion_neighbours: runner::options::DEFAULT_DISOCCLUSION_NEIGHBOURS,
         spatial_radius: 10.0,
         spatial_passes: 1,
         ..Default::default()

@@ -21,6 +21,10 @@ pub const MAX_SPP: u32 = 1 << 24;
 /// Most RIS candidates per pixel: 65,536 is already ~100× past where more stop helping,
 /// and every one costs a light sample in every pixel of every frame.
 pub const MAX_CANDIDATES: u32 = 1 << 16;
+/// ReSTIR's spatial neighbours by default: one for a pixel with a history, five for one
+/// without (see `restir::neighbour_count`).
+pub const DEFAULT_SPATIAL_NEIGHBOURS: u32 = 1;
+pub const DEFAULT_DISOCCLUSION_NEIGHBOURS: u32 = 5;
 /// Most ReSTIR spatial passes per frame: past two or three, more add time and blur, not
 /// quality (Bitterli et al. 2020 use 2).
 pub const MAX_SPATIAL_PASSES: u32 = 8;
@@ -121,9 +125,13 @@ pub struct KernelOptions {
     /// ReSTIR: cap on the temporal history, in multiples of --candidates
     #[arg(long, default_value_t = 20.0, value_name = "X")]
     pub temporal_cap: f32,
-    /// ReSTIR: neighbours merged per spatial pass (at most 16)
-    #[arg(long, default_value_t = 5, value_name = "K")]
+    /// ReSTIR: neighbours merged per spatial pass by a pixel with a history (at most 16)
+    #[arg(long, default_value_t = DEFAULT_SPATIAL_NEIGHBOURS, value_name = "K")]
     pub spatial_neighbours: u32,
+    /// ReSTIR: neighbours merged per spatial pass by a pixel whose history is shorter than 4
+    /// frames (disoccluded, the first frames, or --no-temporal; at most 16)
+    #[arg(long, default_value_t = DEFAULT_DISOCCLUSION_NEIGHBOURS, value_name = "K")]
+    pub disocclusion_neighbours: u32,
     /// ReSTIR: radius of the spatial neighbourhood in pixels [default: 30 px at 1080 lines,
     /// in proportion to the image's smaller side, at least 3]
     #[arg(long, value_name = "PX")]
@@ -314,11 +322,12 @@ pub fn frame_params(
     if !(kernel.temporal_cap > 0.0 && kernel.temporal_cap.is_finite()) {
         bail!("--temporal-cap must be a positive number");
     }
-    if kernel.spatial_neighbours > kernels::integrators::restir::MAX_SPATIAL_NEIGHBOURS {
-        bail!(
-            "--spatial-neighbours is at most {}",
-            kernels::integrators::restir::MAX_SPATIAL_NEIGHBOURS
-        );
+    let most = kernels::integrators::restir::MAX_SPATIAL_NEIGHBOURS;
+    if kernel.spatial_neighbours > most {
+        bail!("--spatial-neighbours is at most {most}");
+    }
+    if kernel.disocclusion_neighbours > most {
+        bail!("--disocclusion-neighbours is at most {most}");
     }
     let spatial_radius = kernel
         .spatial_radius
@@ -361,6 +370,7 @@ pub fn frame_params(
         restir_flags: restir_flags(kernel),
         temporal_cap: kernel.temporal_cap,
         spatial_neighbours: kernel.spatial_neighbours,
+        disocclusion_neighbours: kernel.disocclusion_neighbours,
         spatial_radius,
         spatial_passes: kernel.spatial_passes,
         ..Default::default()

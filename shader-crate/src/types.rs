@@ -400,7 +400,9 @@ pub struct FrameParams {
     /// Cosine of the sun's angular radius (its disk: directions within that of
     /// `sun_direction`).
     pub sun_cos_max: f32,
-    pub _pad: u32,
+    /// ReSTIR: neighbours of a spatial pass for pixels with a short history (at least
+    /// `spatial_neighbours`; see `restir::neighbour_count`).
+    pub disocclusion_neighbours: u32,
     /// Unit direction towards the sun's centre.
     pub sun_direction: [f32; 3],
     pub _pad_sun: u32,
