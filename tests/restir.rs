@@ -268,9 +268,7 @@ fn temporal_reuse_rejects_disoccluded_pixels() {
     for y in 0..h {
         for x in 0..w {
             let i = (y * w + x) as usize;
-            let out = restir::temporal_pass::<false>(
-                &ks, &p1, g1[i], r1[i], &g0, &r0, i as u32, &mut rays,
-            );
+            let out = restir::temporal_pass::<false>(&ks, &p1, &g1, &g0, &r1, &r0, x, y, &mut rays);
             let reprojected = restir::project(&p1.prev_camera, w, h, Vec3::from(g1[i].p));
             let took_history = out.m > r1[i].m;
             if let (true, Some((px, py))) = (on_wall(&g1[i]), reprojected) {

@@ -2,7 +2,6 @@
 //! ReSTIR runs its passes one after another over the whole image, like the GPU dispatches.
 use std::time::Instant;
 
-use glam::Vec3;
 use kernels::integrators::restir;
 use kernels::reservoir::Reservoir;
 use kernels::types::{FrameParams, GBufferTexel};
@@ -31,30 +30,14 @@ fn per_pixel<T: Send>(
     ray_counts: &mut [u32],
     f: impl Fn(u32, u32, &mut T, &mut u32) + Sync,
 ) {
-    let mut nothing = vec![(); out.len()];
-    per_pixel_pair(width, out, &mut nothing, ray_counts, |x, y, o, _, rays| {
-        f(x, y, o, rays)
-    });
-}
-
-/// `per_pixel` for a pass that writes two buffers: `f(x, y, a, b, rays)`.
-fn per_pixel_pair<A: Send, B: Send>(
-    width: u32,
-    a: &mut [A],
-    b: &mut [B],
-    ray_counts: &mut [u32],
-    f: impl Fn(u32, u32, &mut A, &mut B, &mut u32) + Sync,
-) {
     let w = width as usize;
-    a.par_chunks_mut(w)
-        .zip(b.par_chunks_mut(w))
+    out.par_chunks_mut(w)
         .zip(ray_counts.par_chunks_mut(w))
         .enumerate()
-        .for_each(|(y, ((row_a, row_b), counts))| {
-            let pixels = row_a.iter_mut().zip(row_b.iter_mut()).zip(counts);
-            for (x, ((a, b), c)) in pixels.enumerate() {
+        .for_each(|(y, (row, counts))| {
+            for (x, (o, c)) in row.iter_mut().zip(counts).enumerate() {
                 let mut rays = 0;
-                f(x as u32, y as u32, a, b, &mut rays);
+                f(x as u32, y as u32, o, &mut rays);
                 *c = c.wrapping_add(rays);
             }
         });
@@ -91,43 +74,11 @@ impl CpuBackend {
             // Take the written buffer out so the read ones can be borrowed alongside.
             let mut g_cur = std::mem::take(&mut st.gbuffers[sl.g_cur]);
             let g_prev = &st.gbuffers[sl.g_prev];
-            let shade = |acc: &mut [f32; 4], l: Vec3| {
-                *acc = [acc[0] + l.x, acc[1] + l.y, acc[2] + l.z, acc[3] + 1.0];
-            };
             match pass {
-                RestirPass::Sample => {
-                    let mut out = std::mem::take(&mut st.reservoirs[sl.res_out]);
-                    let res_prev = &st.reservoirs[sl.res_prev];
-                    let counts = &mut self.ray_counts;
-                    per_pixel_pair(width, &mut g_cur, &mut out, counts, |x, y, g, r, rays| {
-                        (*g, *r) =
-                            restir::sample_pass::<PLAIN>(&scene, p, g_prev, res_prev, x, y, rays);
-                    });
-                    st.reservoirs[sl.res_out] = out;
-                }
-                RestirPass::Spatial(_) => {
-                    let mut out = std::mem::take(&mut st.reservoirs[sl.res_out]);
-                    let (g, res_in) = (&g_cur, &st.reservoirs[sl.res_in]);
-                    per_pixel(width, &mut out, &mut self.ray_counts, |x, y, o, rays| {
-                        *o = restir::spatial_pass::<PLAIN>(&scene, p, g, res_in, x, y, rays);
-                    });
-                    st.reservoirs[sl.res_out] = out;
-                }
-                RestirPass::SpatialShade(_) => {
-                    let (g, res_in) = (&g_cur, &st.reservoirs[sl.res_in]);
-                    per_pixel(
-                        width,
-                        &mut self.accum,
-                        &mut self.ray_counts,
-                        |x, y, acc, rays| {
-                            shade(
-                                acc,
-                                restir::spatial_shade_pass::<PLAIN>(
-                                    &scene, p, g, res_in, x, y, rays,
-                                ),
-                            );
-                        },
-                    );
+                RestirPass::Primary => {
+                    per_pixel(width, &mut g_cur, &mut self.ray_counts, |x, y, o, rays| {
+                        *o = restir::primary_hit::<PLAIN>(&scene, p, x, y, rays);
+                    })
                 }
                 RestirPass::Shade => {
                     let (g, r) = (&g_cur, &st.reservoirs[sl.res_in]);
@@ -137,14 +88,31 @@ impl CpuBackend {
                         &mut self.ray_counts,
                         |x, y, acc, rays| {
                             let i = (y * width + x) as usize;
-                            shade(
-                                acc,
-                                restir::shade_pass::<PLAIN>(
-                                    &scene, p, &g[i], &r[i], i as u32, rays,
-                                ),
+                            let l = restir::shade_pass::<PLAIN>(
+                                &scene, p, &g[i], &r[i], i as u32, rays,
                             );
+                            *acc = [acc[0] + l.x, acc[1] + l.y, acc[2] + l.z, acc[3] + 1.0];
                         },
                     );
+                }
+                _ => {
+                    let mut out = std::mem::take(&mut st.reservoirs[sl.res_out]);
+                    let (res_in, res_prev) =
+                        (&st.reservoirs[sl.res_in], &st.reservoirs[sl.res_prev]);
+                    let g = &g_cur;
+                    per_pixel(width, &mut out, &mut self.ray_counts, |x, y, o, rays| {
+                        let i = y * width + x;
+                        *o = match pass {
+                            RestirPass::Initial => {
+                                restir::initial_pass::<PLAIN>(&scene, p, &g[i as usize], i, rays)
+                            }
+                            RestirPass::Temporal => restir::temporal_pass::<PLAIN>(
+                                &scene, p, g, g_prev, res_in, res_prev, x, y, rays,
+                            ),
+                            _ => restir::spatial_pass::<PLAIN>(&scene, p, g, res_in, x, y, rays),
+                        };
+                    });
+                    st.reservoirs[sl.res_out] = out;
                 }
             }
             st.gbuffers[sl.g_cur] = g_cur;

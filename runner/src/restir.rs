@@ -7,24 +7,22 @@
 //! frame after frame; it also let one unlucky visibility test empty a whole history.)
 use kernels::types::{Camera, FrameParams, RESTIR_HISTORY_VALID};
 
-/// The dispatches of a frame (see the kernels' `restir.rs`): passes 1–3 in one, each
-/// spatial pass, the last of them shading; without spatial passes, shading alone.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum RestirPass {
-    /// Primary hit, initial candidates and temporal reuse.
-    Sample,
+    Primary,
+    Initial,
+    Temporal,
     Spatial(u32),
-    /// The last spatial pass, then shading.
-    SpatialShade(u32),
     Shade,
 }
 
 impl RestirPass {
     pub fn name(self) -> &'static str {
         match self {
-            RestirPass::Sample => "sample",
+            RestirPass::Primary => "primary",
+            RestirPass::Initial => "initial",
+            RestirPass::Temporal => "temporal",
             RestirPass::Spatial(_) => "spatial",
-            RestirPass::SpatialShade(_) => "spatial+shade",
             RestirPass::Shade => "shade",
         }
     }
@@ -33,12 +31,10 @@ impl RestirPass {
     /// `integrator::plain_scene`) or the general one.
     pub fn entry_point(self, plain: bool) -> &'static str {
         let [general, plain_variant] = match self {
-            RestirPass::Sample => ["entry::restir_sample", "entry::restir_sample_plain"],
+            RestirPass::Primary => ["entry::restir_primary", "entry::restir_primary_plain"],
+            RestirPass::Initial => ["entry::restir_initial", "entry::restir_initial_plain"],
+            RestirPass::Temporal => ["entry::restir_temporal", "entry::restir_temporal_plain"],
             RestirPass::Spatial(_) => ["entry::restir_spatial", "entry::restir_spatial_plain"],
-            RestirPass::SpatialShade(_) => [
-                "entry::restir_spatial_shade",
-                "entry::restir_spatial_shade_plain",
-            ],
             RestirPass::Shade => ["entry::restir_shade", "entry::restir_shade_plain"],
         };
         if plain {
@@ -48,10 +44,11 @@ impl RestirPass {
         }
     }
 
-    pub const ENTRY_POINTS: [RestirPass; 4] = [
-        RestirPass::Sample,
+    pub const ENTRY_POINTS: [RestirPass; 5] = [
+        RestirPass::Primary,
+        RestirPass::Initial,
+        RestirPass::Temporal,
         RestirPass::Spatial(0),
-        RestirPass::SpatialShade(0),
         RestirPass::Shade,
     ];
 }
@@ -87,27 +84,23 @@ impl RestirSchedule {
             res_out,
             res_prev,
         };
-        // The sample pass reads no `res_in`: it binds the buffer the spatial passes use.
-        let mut plan = vec![(RestirPass::Sample, slots(initial, temporal, history))];
-        // Spatial passes ping-pong between the two buffers free by now (the initial slot
-        // and the old history), leaving the temporal result alone. A pass that reads no
-        // history binds its input there too (read-only twice is allowed); the passes that
-        // shade write no reservoir, and bind a free one.
+        let mut plan = vec![
+            (RestirPass::Primary, slots(temporal, initial, history)),
+            (RestirPass::Initial, slots(temporal, initial, history)),
+            (RestirPass::Temporal, slots(initial, temporal, history)),
+        ];
+        // Spatial passes ping-pong between the two buffers free by now (this frame's initial
+        // reservoirs and the old history), leaving the temporal result alone. A pass that
+        // reads no history binds its input there too (read-only twice is allowed).
         let free = [initial, history];
         let mut input = temporal;
         for i in 0..spatial_passes {
             let out = free[i as usize % 2];
-            let pass = if i + 1 == spatial_passes {
-                RestirPass::SpatialShade(i)
-            } else {
-                RestirPass::Spatial(i)
-            };
-            plan.push((pass, slots(input, out, input)));
+            plan.push((RestirPass::Spatial(i), slots(input, out, input)));
             input = out;
         }
-        if spatial_passes == 0 {
-            plan.push((RestirPass::Shade, slots(temporal, initial, temporal)));
-        }
+        let spare = if input == initial { history } else { initial };
+        plan.push((RestirPass::Shade, slots(input, spare, input)));
         self.prev = temporal;
         self.parity = 1 - self.parity;
         plan
@@ -144,7 +137,7 @@ impl<G, R> RestirState<G, R> {
             .into_iter()
             .map(|(pass, slots)| {
                 let mut p = *params;
-                if let RestirPass::Spatial(i) | RestirPass::SpatialShade(i) = pass {
+                if let RestirPass::Spatial(i) = pass {
                     p.spatial_pass = i;
                 }
                 (pass, slots, p)
@@ -177,7 +170,7 @@ mod tests {
                 assert_ne!(sl.g_cur, sl.g_prev);
             }
             // Each pass reads what the one before wrote.
-            for w in plan.windows(2) {
+            for w in plan.windows(2).skip(1) {
                 assert_eq!(
                     w[1].1.res_in, w[0].1.res_out,
                     "{:?} -> {:?}",
@@ -186,7 +179,7 @@ mod tests {
             }
             let temporal = plan
                 .iter()
-                .find(|(p, _)| *p == RestirPass::Sample)
+                .find(|(p, _)| *p == RestirPass::Temporal)
                 .unwrap()
                 .1;
             if let Some(t) = last_temporal {
@@ -198,7 +191,7 @@ mod tests {
             // No spatial pass or shade overwrites the history of the next frame.
             for (pass, sl) in plan
                 .iter()
-                .skip_while(|(p, _)| *p != RestirPass::Sample)
+                .skip_while(|(p, _)| *p != RestirPass::Temporal)
                 .skip(1)
             {
                 assert_ne!(

@@ -83,26 +83,54 @@ image_kernel!(nee_diffuse_main, path::nee_pixel::<true>);
 image_kernel!(mis_diffuse_main, path::mis_pixel::<true>);
 image_kernel!(ris_diffuse_main, path::ris_pixel::<true>);
 
-/// Declares the dispatches of a ReSTIR frame (see `restir.rs`) under the given names, for
-/// any scene (`PLAIN` false) or for plain ones (true).
+/// Declares ReSTIR's five passes (`restir.rs`) under the given names, for any scene
+/// (`PLAIN` false) or for plain ones (true).
 macro_rules! restir_kernels {
-    ($plain:literal, $sample:ident, $spatial:ident, $spatial_shade:ident, $shade:ident) => {
-        kernel!($sample, |scene,
-                          params,
-                          x,
-                          y,
-                          i,
-                          rays,
-                          accum,
-                          restir: g_cur,
-                          g_prev,
-                          res_in,
-                          res_out,
-                          res_prev| {
-            let (g, r) =
-                restir::sample_pass::<$plain>(&scene, params, g_prev, res_prev, x, y, &mut rays);
-            g_cur[i] = g;
-            res_out[i] = r;
+    ($plain:literal, $primary:ident, $initial:ident, $temporal:ident, $spatial:ident, $shade:ident) => {
+        kernel!($primary, |scene,
+                           params,
+                           x,
+                           y,
+                           i,
+                           rays,
+                           accum,
+                           restir: g_cur,
+                           g_prev,
+                           res_in,
+                           res_out,
+                           res_prev| {
+            g_cur[i] = restir::primary_hit::<$plain>(&scene, params, x, y, &mut rays);
+        });
+        kernel!($initial, |scene,
+                           params,
+                           x,
+                           y,
+                           i,
+                           rays,
+                           accum,
+                           restir: g_cur,
+                           g_prev,
+                           res_in,
+                           res_out,
+                           res_prev| {
+            res_out[i] =
+                restir::initial_pass::<$plain>(&scene, params, &g_cur[i], i as u32, &mut rays);
+        });
+        kernel!($temporal, |scene,
+                            params,
+                            x,
+                            y,
+                            i,
+                            rays,
+                            accum,
+                            restir: g_cur,
+                            g_prev,
+                            res_in,
+                            res_out,
+                            res_prev| {
+            res_out[i] = restir::temporal_pass::<$plain>(
+                &scene, params, g_cur, g_prev, res_in, res_prev, x, y, &mut rays,
+            );
         });
         kernel!($spatial, |scene,
                            params,
@@ -118,23 +146,6 @@ macro_rules! restir_kernels {
                            res_prev| {
             res_out[i] =
                 restir::spatial_pass::<$plain>(&scene, params, g_cur, res_in, x, y, &mut rays);
-        });
-        kernel!($spatial_shade, |scene,
-                                 params,
-                                 x,
-                                 y,
-                                 i,
-                                 rays,
-                                 accum,
-                                 restir: g_cur,
-                                 g_prev,
-                                 res_in,
-                                 res_out,
-                                 res_prev| {
-            let l = restir::spatial_shade_pass::<$plain>(
-                &scene, params, g_cur, res_in, x, y, &mut rays,
-            );
-            accum[i] += l.extend(1.0);
         });
         kernel!($shade, |scene,
                          params,
@@ -158,16 +169,18 @@ macro_rules! restir_kernels {
 
 restir_kernels!(
     false,
-    restir_sample,
+    restir_primary,
+    restir_initial,
+    restir_temporal,
     restir_spatial,
-    restir_spatial_shade,
     restir_shade
 );
 restir_kernels!(
     true,
-    restir_sample_plain,
+    restir_primary_plain,
+    restir_initial_plain,
+    restir_temporal_plain,
     restir_spatial_plain,
-    restir_spatial_shade_plain,
     restir_shade_plain
 );
 

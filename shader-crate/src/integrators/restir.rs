@@ -1,4 +1,5 @@
-//! ReSTIR DI (Bitterli et al. 2020), one function per pass:
+//! ReSTIR DI (Bitterli et al. 2020), one function per pass; each pass is its own GPU
+//! dispatch, and the CPU backend runs the same functions pass by pass over all pixels.
 //! 1. `primary_hit`: the G-buffer (position, normal, albedo, depth) from the camera.
 //! 2. `initial_pass`: RIS over `candidates` light samples into a reservoir.
 //! 3. `temporal_pass`: reproject into the previous frame, reject on depth/normal
@@ -6,12 +7,6 @@
 //! 4. `spatial_pass`: merge k neighbours within a radius that pass the same test.
 //! 5. `shade_pass`: f · Le · G · W, plus emission seen directly and, with max_depth > 2
 //!    (or a sky), the light of a bounce continued by NEE path tracing.
-//!
-//! A frame runs them as few dispatches as their data allow, on the GPU and (pass by pass
-//! over all pixels) on the CPU alike: 1–3 read no other pixel of this frame, so they are
-//! one (`sample_pass`); each spatial pass reads its neighbours' results, so it is its own,
-//! and the last one shades (`spatial_shade_pass`). Each dispatch saved is a G-buffer and a
-//! reservoir written and read back, and the idle tail of a pass.
 //!
 //! Every reservoir a pass writes holds a sample its owner *sees*, or none (W = 0): the
 //! initial pick is tested with a shadow ray; the temporal pass resamples the history's
@@ -297,13 +292,17 @@ fn balance(a: f32, b: f32) -> f32 {
 pub fn temporal_pass<const PLAIN: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
-    g: GBufferTexel,
-    cur: Reservoir,
+    g_cur: &[GBufferTexel],
     g_prev: &[GBufferTexel],
+    current: &[Reservoir],
     previous: &[Reservoir],
-    pixel: u32,
+    x: u32,
+    y: u32,
     rays: &mut u32,
 ) -> Reservoir {
+    let pixel = (y * params.width + x) as usize;
+    let cur = current[pixel];
+    let g = g_cur[pixel];
     let wanted = RESTIR_TEMPORAL | RESTIR_HISTORY_VALID;
     if params.restir_flags & wanted != wanted || !has_hit(&g) {
         return cur;
@@ -322,7 +321,7 @@ pub fn temporal_pass<const PLAIN: bool>(
     let mut prev = previous[prev_pixel];
     prev.m = prev.m.min(params.temporal_cap * params.candidates as f32);
 
-    let mut rng = pass_rng(params, pixel, STREAM_TEMPORAL);
+    let mut rng = pass_rng(params, pixel as u32, STREAM_TEMPORAL);
     let eye = vec3(params.camera.eye);
     let target_prev = target_with_visibility::<PLAIN>(scene, params, &g, eye, &prev, false, rays);
     // Generalised RIS with the balance heuristic over the two reservoirs: each sample
@@ -341,40 +340,6 @@ pub fn temporal_pass<const PLAIN: bool>(
     out.resample(&prev, target_prev, m_prev, rng.next_f32());
     out.finalize(1.0);
     out
-}
-
-/// Passes 1–3 for pixel (x, y): its G-buffer texel and its reservoir after temporal reuse
-/// (this frame's candidates merged with the history in `g_prev`, `previous`).
-#[allow(clippy::too_many_arguments)]
-pub fn sample_pass<const PLAIN: bool>(
-    scene: &SceneBuffers,
-    params: &FrameParams,
-    g_prev: &[GBufferTexel],
-    previous: &[Reservoir],
-    x: u32,
-    y: u32,
-    rays: &mut u32,
-) -> (GBufferTexel, Reservoir) {
-    let pixel = y * params.width + x;
-    let g = primary_hit::<PLAIN>(scene, params, x, y, rays);
-    let cur = initial_pass::<PLAIN>(scene, params, &g, pixel, rays);
-    let r = temporal_pass::<PLAIN>(scene, params, g, cur, g_prev, previous, pixel, rays);
-    (g, r)
-}
-
-/// The last spatial pass and the shade pass for pixel (x, y): its radiance this frame.
-pub fn spatial_shade_pass<const PLAIN: bool>(
-    scene: &SceneBuffers,
-    params: &FrameParams,
-    gbuffer: &[GBufferTexel],
-    input: &[Reservoir],
-    x: u32,
-    y: u32,
-    rays: &mut u32,
-) -> Vec3 {
-    let pixel = y * params.width + x;
-    let r = spatial_pass::<PLAIN>(scene, params, gbuffer, input, x, y, rays);
-    shade_pass::<PLAIN>(scene, params, &gbuffer[pixel as usize], &r, pixel, rays)
 }
 
 /// Pass 4: merge up to `spatial_neighbours` similar neighbours within `spatial_radius`.
