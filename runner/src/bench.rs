@@ -1,7 +1,8 @@
 //! `runner bench`: time a render workload. Each frame is a full render of `--spp` samples
 //! per pixel; its time is the sum of its passes' device times (GPU timestamp queries, or
 //! wall clock on the CPU backend). Rays counts camera, bounce, shadow and AO rays, as
-//! traced by the kernels themselves.
+//! traced by the kernels themselves. ReSTIR's frames form one sequence across warm-up and
+//! runs (`--spp` frames a run), as in the viewer.
 use clap::Args;
 
 use crate::backend::DeviceOptions;
@@ -17,6 +18,7 @@ use crate::error::Result;
 use crate::integrator::Integrator;
 use crate::options::frame_params;
 use crate::render::{accumulate, RenderStats};
+use crate::restir::continue_history;
 use crate::scene::{load as load_scene, Scene};
 
 #[derive(Clone, Debug)]
@@ -204,7 +206,7 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
 /// workloads); `frame_params` may add the built-in sky to the scene, so it works on a copy.
 fn bench_scene(args: &BenchArgs, loaded: &Scene) -> Result<BenchReport> {
     let mut scene = loaded.clone();
-    let params = frame_params(&args.scene, &args.kernel, &mut scene)?;
+    let mut params = frame_params(&args.scene, &args.kernel, &mut scene)?;
     let mut backend =
         crate::backend::open(args.device.backend, &scene, params.width, params.height)?;
     let k = &args.kernel;
@@ -216,6 +218,14 @@ fn bench_scene(args: &BenchArgs, loaded: &Scene) -> Result<BenchReport> {
     let warm_start = std::time::Instant::now();
     loop {
         frame(backend.as_mut(), k, &params)?;
+        if k.integrator == Integrator::Restir {
+            // As in the viewer, each frame continues the history of the one before: the
+            // steady state is measured, not a fresh history per run (whose first frames
+            // have no temporal pass and take `--disocclusion-neighbours`).
+            let camera = params.camera;
+            continue_history(&mut params, camera);
+            params.frame += k.spp;
+        }
         if warm_start.elapsed().as_secs_f64() >= args.warmup {
             break;
         }
@@ -224,6 +234,9 @@ fn bench_scene(args: &BenchArgs, loaded: &Scene) -> Result<BenchReport> {
     kernels::bvh::stats::take();
     for _ in 0..args.runs {
         let stats = frame(backend.as_mut(), k, &params)?;
+        if k.integrator == Integrator::Restir {
+            params.frame += k.spp;
+        }
         frame_ms.push(stats.pass_ms.iter().sum());
         pass_ms.extend(stats.pass_ms);
         // ReSTIR: this run's time per frame in each pass kind (spatial may run several times).
