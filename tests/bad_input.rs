@@ -253,7 +253,10 @@ fn absurd_or_contradictory_options() {
         (&["--max-depth", "0"], "--max-depth"),
         (&["--candidates", "0"], "--candidates"),
         (&["--spatial-neighbours", "99"], "--spatial-neighbours"),
-        (&["--disocclusion-neighbours", "17"], "--disocclusion-neighbours"),
+        (
+            &["--disocclusion-neighbours", "17"],
+            "--disocclusion-neighbours",
+        ),
         (&["--frames", "0"], "--frames"),
         (&["--integrator", "photon-mapping"], "photon-mapping"),
         (&["--bogus-flag"], "--bogus-flag"),
