@@ -741,21 +741,8 @@ fn required_extensions_we_cannot_read_are_refused_by_name() {
     let path = floor_naming_extensions(&d, draco, true);
     let out = d.join("refused.png");
     let _ = std::fs::remove_file(&out); // left by an earlier run in a kept target dir
-    let run = common::runner(&[
-        "render",
-        "--backend",
-        "cpu",
-        "--scene",
-        path.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--width",
-        "8",
-        "--height",
-        "8",
-        "--spp",
-        "1",
-    ]);
+    let tiny = ["--width", "8", "--height", "8", "--spp", "1"];
+    let run = common::run_render_cpu(&path, &out, &tiny);
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(!run.status.success(), "{stderr}");
     let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();

@@ -22,6 +22,18 @@ pub fn render_cpu(
     out: &std::path::Path,
     args: &[&str],
 ) -> (runner::output::Image, String) {
+    let o = run_render_cpu(scene, out, args);
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{stderr}");
+    (runner::output::read_image(out).unwrap(), stderr)
+}
+
+/// `runner render --backend cpu --scene SCENE --out OUT ARGS...`, whatever its outcome.
+pub fn run_render_cpu(
+    scene: &std::path::Path,
+    out: &std::path::Path,
+    args: &[&str],
+) -> std::process::Output {
     let mut all = vec![
         "render",
         "--backend",
@@ -32,10 +44,7 @@ pub fn render_cpu(
         out.to_str().unwrap(),
     ];
     all.extend_from_slice(args);
-    let o = runner(&all);
-    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(o.status.success(), "{stderr}");
-    (runner::output::read_image(out).unwrap(), stderr)
+    runner(&all)
 }
 
 /// A folder of the test's own under cargo's temporary directory.
