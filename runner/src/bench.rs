@@ -170,10 +170,13 @@ impl BenchReport {
 /// One timed frame: the GPU work of `render` without reading anything back. Reading the
 /// image back after every frame left the GPU idle most of the time, and an H100 then lowers
 /// its clocks within seconds (seen: 1980 → 420 MHz, timestamps up to 5x longer).
+/// ReSTIR's frames then move `params` on: as in the viewer, each continues the history of
+/// the one before, so the steady state is measured, not a fresh history per run (whose
+/// first frames have no temporal pass and take `--disocclusion-neighbours`).
 fn frame(
     backend: &mut dyn Backend,
     k: &KernelOptions,
-    params: &FrameParams,
+    params: &mut FrameParams,
 ) -> Result<RenderStats> {
     backend.clear()?;
     let mut stats = RenderStats::default();
@@ -186,6 +189,11 @@ fn frame(
         &ProgressBar::hidden(),
         &mut stats,
     )?;
+    if k.integrator == Integrator::Restir {
+        let camera = params.camera;
+        continue_history(params, camera);
+        params.frame += k.spp;
+    }
     Ok(stats)
 }
 
@@ -217,15 +225,7 @@ fn bench_scene(args: &BenchArgs, loaded: &Scene) -> Result<BenchReport> {
     // and short workloads otherwise measure the ramp (seen: 4x on an H100).
     let warm_start = std::time::Instant::now();
     loop {
-        frame(backend.as_mut(), k, &params)?;
-        if k.integrator == Integrator::Restir {
-            // As in the viewer, each frame continues the history of the one before: the
-            // steady state is measured, not a fresh history per run (whose first frames
-            // have no temporal pass and take `--disocclusion-neighbours`).
-            let camera = params.camera;
-            continue_history(&mut params, camera);
-            params.frame += k.spp;
-        }
+        frame(backend.as_mut(), k, &mut params)?;
         if warm_start.elapsed().as_secs_f64() >= args.warmup {
             break;
         }
@@ -233,10 +233,7 @@ fn bench_scene(args: &BenchArgs, loaded: &Scene) -> Result<BenchReport> {
     #[cfg(feature = "traversal-stats")]
     kernels::bvh::stats::take();
     for _ in 0..args.runs {
-        let stats = frame(backend.as_mut(), k, &params)?;
-        if k.integrator == Integrator::Restir {
-            params.frame += k.spp;
-        }
+        let stats = frame(backend.as_mut(), k, &mut params)?;
         frame_ms.push(stats.pass_ms.iter().sum());
         pass_ms.extend(stats.pass_ms);
         // ReSTIR: this run's time per frame in each pass kind (spatial may run several times).
