@@ -15,6 +15,7 @@ use crate::types::{
     INVALID, METAL_THRESHOLD, NORMAL_MAP_HEIGHT, SHADING_BITANGENT_FLIPPED, SHADING_COLOURS,
     SHADING_NORMALS, SHADING_TANGENTS, SHADING_UVS,
 };
+use core::mem::MaybeUninit;
 
 /// The node type of the traversal compiled in.
 #[cfg(any(feature = "traversal-bvh2", feature = "traversal-brute-force"))]
@@ -571,8 +572,10 @@ struct CwbvhWalk {
     oct_inv: u32,
     /// The nearest hit so far (t = the ray's end while none).
     hit: Hit,
-    stack_base: [u32; CWBVH_STACK],
-    stack_bits: [u32; CWBVH_STACK],
+    /// Entries below `sp` are written before they are read: left uninitialised, as every
+    /// traversal used to spend time zeroing them in local memory.
+    stack_base: [MaybeUninit<u32>; CWBVH_STACK],
+    stack_bits: [MaybeUninit<u32>; CWBVH_STACK],
     sp: usize,
     /// The node group being visited: child base index and hit bits.
     group_base: u32,
@@ -587,8 +590,8 @@ impl CwbvhWalk {
             inv_dir: Vec3::ZERO,
             oct_inv: 0,
             hit: Hit::none(t_max),
-            stack_base: [0u32; CWBVH_STACK],
-            stack_bits: [0u32; CWBVH_STACK],
+            stack_base: [MaybeUninit::uninit(); CWBVH_STACK],
+            stack_bits: [MaybeUninit::uninit(); CWBVH_STACK],
             sp: 0,
             group_base: 0,
             group_bits: 0,
@@ -631,8 +634,8 @@ impl CwbvhWalk {
             let relative = (self.group_bits & 0xff & !(0xffff_ffffu32 << slot)).count_ones();
             let child = self.group_base + relative;
             if self.group_bits & INTERIOR_HITS != 0 && self.sp < CWBVH_STACK {
-                self.stack_base[self.sp] = self.group_base;
-                self.stack_bits[self.sp] = self.group_bits;
+                self.stack_base[self.sp] = MaybeUninit::new(self.group_base);
+                self.stack_bits[self.sp] = MaybeUninit::new(self.group_bits);
                 self.sp += 1;
             }
             count!(NODES);
@@ -664,8 +667,11 @@ impl CwbvhWalk {
                 return true;
             }
             self.sp -= 1;
-            self.group_base = self.stack_base[self.sp];
-            self.group_bits = self.stack_bits[self.sp];
+            // SAFETY: entry `sp` was pushed (written) before `sp` passed it.
+            unsafe {
+                self.group_base = self.stack_base[self.sp].assume_init();
+                self.group_bits = self.stack_bits[self.sp].assume_init();
+            }
         }
         false
     }
