@@ -14,14 +14,15 @@ use crate::types::{
 };
 use spirv_std::spirv;
 
-/// Declares one compute kernel over the image. The scene buffers (set 0) are bound as a
+/// Declares one compute kernel over the image, in workgroups of `$wx`×`$wy` invocations (the
+/// host's `gpu::pipelines::workgroup` says the same). The scene buffers (set 0) are bound as a
 /// `SceneBuffers` named `$scene`, the accumulation as `$accum`; `$body` runs for pixel
 /// (`$x`, `$y`) with index `$i` and adds the rays it traces to `$rays`. A `restir:` list
 /// of names also binds ReSTIR's set 1 under those names.
 macro_rules! kernel {
-    ($name:ident, |$scene:ident, $params:ident, $x:ident, $y:ident, $i:ident, $rays:ident, $accum:ident
+    (threads($wx:literal, $wy:literal), $name:ident, |$scene:ident, $params:ident, $x:ident, $y:ident, $i:ident, $rays:ident, $accum:ident
         $(, restir: $g_cur:ident, $g_prev:ident, $res_in:ident, $res_out:ident, $res_prev:ident)?| $body:block) => {
-        #[spirv(compute(threads(8, 8)))]
+        #[spirv(compute(threads($wx, $wy)))]
         #[allow(unused_variables, unused_mut)]
         pub fn $name(
             #[spirv(global_invocation_id)] id: UVec3,
@@ -63,7 +64,13 @@ macro_rules! kernel {
 /// sum of the pixel's samples, added to the accumulation with their count.
 macro_rules! image_kernel {
     ($name:ident, $pixel:path) => {
-        kernel!($name, |scene, params, x, y, i, rays, accum| {
+        kernel!(threads(8, 8), $name, |scene,
+                                       params,
+                                       x,
+                                       y,
+                                       i,
+                                       rays,
+                                       accum| {
             let r: PixelResult = $pixel(&scene, params, x, y);
             accum[i] += r.sum.extend(params.samples as f32);
             rays += r.rays;
@@ -87,83 +94,103 @@ image_kernel!(ris_diffuse_main, path::ris_pixel::<true>);
 /// (`PLAIN` false) or for plain ones (true).
 macro_rules! restir_kernels {
     ($plain:literal, $primary:ident, $initial:ident, $temporal:ident, $spatial:ident, $shade:ident) => {
-        kernel!($primary, |scene,
-                           params,
-                           x,
-                           y,
-                           i,
-                           rays,
-                           accum,
-                           restir: g_cur,
-                           g_prev,
-                           res_in,
-                           res_out,
-                           res_prev| {
-            g_cur[i] = restir::primary_hit::<$plain>(&scene, params, x, y, &mut rays);
-        });
-        kernel!($initial, |scene,
-                           params,
-                           x,
-                           y,
-                           i,
-                           rays,
-                           accum,
-                           restir: g_cur,
-                           g_prev,
-                           res_in,
-                           res_out,
-                           res_prev| {
-            res_out[i] =
-                restir::initial_pass::<$plain>(&scene, params, &g_cur[i], i as u32, &mut rays);
-        });
-        kernel!($temporal, |scene,
-                            params,
-                            x,
-                            y,
-                            i,
-                            rays,
-                            accum,
-                            restir: g_cur,
-                            g_prev,
-                            res_in,
-                            res_out,
-                            res_prev| {
-            res_out[i] = restir::temporal_pass::<$plain>(
-                &scene, params, g_cur, g_prev, res_in, res_prev, x, y, &mut rays,
-            );
-        });
-        kernel!($spatial, |scene,
-                           params,
-                           x,
-                           y,
-                           i,
-                           rays,
-                           accum,
-                           restir: g_cur,
-                           g_prev,
-                           res_in,
-                           res_out,
-                           res_prev| {
-            res_out[i] =
-                restir::spatial_pass::<$plain>(&scene, params, g_cur, res_in, x, y, &mut rays);
-        });
-        kernel!($shade, |scene,
-                         params,
-                         x,
-                         y,
-                         i,
-                         rays,
-                         accum,
-                         restir: g_cur,
-                         g_prev,
-                         res_in,
-                         res_out,
-                         res_prev| {
-            let l = restir::shade_pass::<$plain>(
-                &scene, params, &g_cur[i], &res_in[i], i as u32, &mut rays,
-            );
-            accum[i] += l.extend(1.0);
-        });
+        kernel!(
+            threads(16, 8),
+            $primary,
+            |scene,
+             params,
+             x,
+             y,
+             i,
+             rays,
+             accum,
+             restir: g_cur,
+             g_prev,
+             res_in,
+             res_out,
+             res_prev| {
+                g_cur[i] = restir::primary_hit::<$plain>(&scene, params, x, y, &mut rays);
+            }
+        );
+        kernel!(
+            threads(16, 8),
+            $initial,
+            |scene,
+             params,
+             x,
+             y,
+             i,
+             rays,
+             accum,
+             restir: g_cur,
+             g_prev,
+             res_in,
+             res_out,
+             res_prev| {
+                res_out[i] =
+                    restir::initial_pass::<$plain>(&scene, params, &g_cur[i], i as u32, &mut rays);
+            }
+        );
+        kernel!(
+            threads(16, 8),
+            $temporal,
+            |scene,
+             params,
+             x,
+             y,
+             i,
+             rays,
+             accum,
+             restir: g_cur,
+             g_prev,
+             res_in,
+             res_out,
+             res_prev| {
+                res_out[i] = restir::temporal_pass::<$plain>(
+                    &scene, params, g_cur, g_prev, res_in, res_prev, x, y, &mut rays,
+                );
+            }
+        );
+        kernel!(
+            threads(16, 8),
+            $spatial,
+            |scene,
+             params,
+             x,
+             y,
+             i,
+             rays,
+             accum,
+             restir: g_cur,
+             g_prev,
+             res_in,
+             res_out,
+             res_prev| {
+                res_out[i] =
+                    restir::spatial_pass::<$plain>(&scene, params, g_cur, res_in, x, y, &mut rays);
+            }
+        );
+        kernel!(
+            threads(16, 8),
+            $shade,
+            |scene,
+             params,
+             x,
+             y,
+             i,
+             rays,
+             accum,
+             restir: g_cur,
+             g_prev,
+             res_in,
+             res_out,
+             res_prev| {
+                let l = restir::shade_pass::<$plain>(
+                    &scene, params, &g_cur[i], &res_in[i], i as u32, &mut rays,
+                );
+                accum[i] += l.extend(1.0);
+            }
+        );
     };
 }
 

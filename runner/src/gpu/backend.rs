@@ -12,7 +12,7 @@ use wgpu::util::DeviceExt;
 
 use super::bindings::bind_group;
 use super::device::GpuContext;
-use super::pipelines::WORKGROUP;
+use super::pipelines::{workgroups, IMAGE_WORKGROUP, RESTIR_WORKGROUP};
 use super::timestamps::{Timestamps, MAX_TIMED_PASSES};
 use crate::backend::Backend;
 use crate::bail;
@@ -42,7 +42,12 @@ const ACCUMULATION_TEXEL_BYTES: u64 = 16;
 /// Check that a scene and an image of `width`×`height` fit this GPU's limits (every buffer
 /// any integrator allocates, ReSTIR's included), before allocating anything.
 pub fn check_fits(limits: &wgpu::Limits, scene: &Scene, width: u32, height: u32) -> Result<()> {
-    let groups = (width.div_ceil(WORKGROUP.0), height.div_ceil(WORKGROUP.1));
+    // The most workgroups any kernel dispatches over the image: the smallest workgroup's.
+    let (wx, wy) = (
+        IMAGE_WORKGROUP.0.min(RESTIR_WORKGROUP.0),
+        IMAGE_WORKGROUP.1.min(RESTIR_WORKGROUP.1),
+    );
+    let groups = (width.div_ceil(wx), height.div_ceil(wy));
     let max_groups = limits.max_compute_workgroups_per_dimension;
     if groups.0 > max_groups || groups.1 > max_groups {
         bail!(
@@ -242,10 +247,12 @@ impl GpuBackend {
         self.width as u64 * self.height as u64
     }
 
-    /// Record one image-sized dispatch of `entry` into `encoder`, timed as pair `timer`.
+    /// Record one image-sized dispatch of `entry`, an entry point of `kernel`, into
+    /// `encoder`, timed as pair `timer`.
     fn dispatch(
         &self,
         encoder: &mut wgpu::CommandEncoder,
+        kernel: Kernel,
         entry: &str,
         restir_group: Option<&wgpu::BindGroup>,
         timer: u32,
@@ -259,11 +266,8 @@ impl GpuBackend {
         if let Some(group) = restir_group {
             pass.set_bind_group(1, group, &[]);
         }
-        pass.dispatch_workgroups(
-            self.width.div_ceil(WORKGROUP.0),
-            self.height.div_ceil(WORKGROUP.1),
-            1,
-        );
+        let (gx, gy) = workgroups(kernel, self.width, self.height);
+        pass.dispatch_workgroups(gx, gy, 1);
     }
 
     /// Device times in ms of the first `n` timed passes (wall clock split evenly when the
@@ -325,6 +329,7 @@ impl GpuBackend {
             let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
             self.dispatch(
                 &mut encoder,
+                Kernel::Restir { plain },
                 pass.entry_point(plain),
                 Some(&group),
                 k as u32,
@@ -356,7 +361,7 @@ impl GpuBackend {
             .queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(params));
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
-        self.dispatch(&mut encoder, entry_point, None, 0);
+        self.dispatch(&mut encoder, kernel, entry_point, None, 0);
         self.ctx.queue.submit([encoder.finish()]);
         self.in_flight = Some(InFlight {
             start,

@@ -11,8 +11,27 @@ use crate::restir::RestirPass;
 /// The kernels' SPIR-V, compiled from shader-crate by runner/build.rs.
 const SPIRV: &[u8] = include_bytes!(env!("kernels.spv"));
 
-/// Workgroup size of every image kernel (`#[spirv(compute(threads(8, 8)))]`).
-pub const WORKGROUP: (u32, u32) = (8, 8);
+/// Workgroup size of the integrators' image kernels (`kernel!(threads(8, 8), ..)` in
+/// entry.rs): two warps of 8×4 pixels.
+pub const IMAGE_WORKGROUP: (u32, u32) = (8, 8);
+/// Workgroup size of ReSTIR's passes (`threads(16, 8)`): four warps of 16×2 pixels. On the
+/// H100, 1–3% faster than 8×8 for every ReSTIR scene measured, while NEE and pt on the 1M
+/// suite scenes were 2–4% slower at 16×8 (README, "Workgroup shape").
+pub const RESTIR_WORKGROUP: (u32, u32) = (16, 8);
+
+/// The workgroup size of a kernel's entry points.
+pub fn workgroup(kernel: Kernel) -> (u32, u32) {
+    match kernel {
+        Kernel::Image { .. } => IMAGE_WORKGROUP,
+        Kernel::Restir { .. } => RESTIR_WORKGROUP,
+    }
+}
+
+/// Workgroups that cover a `width`×`height` image.
+pub fn workgroups(kernel: Kernel, width: u32, height: u32) -> (u32, u32) {
+    let (wx, wy) = workgroup(kernel);
+    (width.div_ceil(wx), height.div_ceil(wy))
+}
 
 /// The kernels' SPIR-V as 32-bit words.
 pub fn spirv_words() -> Vec<u32> {
@@ -50,18 +69,18 @@ pub struct Pipelines {
 
 impl Pipelines {
     pub fn new(device: &wgpu::Device) -> Self {
-        let mut names: Vec<&'static str> = Integrator::ALL
+        let mut names: Vec<(&'static str, (u32, u32))> = Integrator::ALL
             .into_iter()
             .flat_map(Integrator::kernels)
-            .flat_map(entry_points)
+            .flat_map(|k| entry_points(k).into_iter().map(move |n| (n, workgroup(k))))
             .collect();
         names.sort_unstable();
         names.dedup();
-        let names = names.into_iter();
         let entry_points: Vec<wgpu::PassthroughShaderEntryPoint> = names
-            .map(|name| wgpu::PassthroughShaderEntryPoint {
+            .into_iter()
+            .map(|(name, (wx, wy))| wgpu::PassthroughShaderEntryPoint {
                 name: Cow::Borrowed(name),
-                workgroup_size: (WORKGROUP.0, WORKGROUP.1, 1),
+                workgroup_size: (wx, wy, 1),
             })
             .collect();
         // SAFETY: the module is rust-gpu output validated by spirv-val at build time, and the
