@@ -321,7 +321,8 @@ pub struct BenchArgs {
     /// Run the benchmark suite instead of one workload: AO (1 spp x 64 AO rays), NEE (direct
     /// light, 1 spp) and pt (8 segments, 1 spp) on each built-in suite scene (rocks-1m,
     /// spheres-1m, city-1m, grass-1m, shell-1m), one table; --scene, --integrator, --spp,
-    /// --ao-rays and --max-depth are set by the suite, and --bvh-quality is high unless given
+    /// --ao-rays and --max-depth are set by the suite, --bvh-quality is high unless given,
+    /// and each workload warms up for at least 5 s
     #[arg(long)]
     pub suite: bool,
 }
@@ -332,6 +333,12 @@ const SUITE_WORKLOADS: [(Integrator, u32, u32, u32); 3] = [
     (Integrator::Nee, 1, 4, 2),
     (Integrator::Pt, 1, 4, 8),
 ];
+
+/// Least warm-up of each suite workload, in seconds. Right after a scene's AO workload
+/// (110 ms frames on shell-1m) its 1 ms NEE and pt frames read 4–6× slow for a few seconds,
+/// every timed run included: with 1 s of warm-up the suite gave shell-1m NEE 5.6–6.2 ms and
+/// pt 0.81–4.2, with 5 s 1.08 and 0.81, as each alone (H100).
+const SUITE_MIN_WARMUP: f64 = 5.0;
 
 /// `runner bench --suite`: every workload on every suite scene; a table of ms per frame
 /// and rays per second (or one JSON object per run).
@@ -354,6 +361,7 @@ pub fn suite(args: &BenchArgs) -> Result<String> {
         for (integrator, spp, ao_rays, max_depth) in SUITE_WORKLOADS {
             let mut run = args.clone();
             run.suite = false;
+            run.warmup = args.warmup.max(SUITE_MIN_WARMUP);
             run.scene = at_scene.clone();
             run.kernel.integrator = integrator;
             run.kernel.spp = spp;
