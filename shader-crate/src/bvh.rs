@@ -37,9 +37,9 @@ pub const TRAVERSAL: &str = if cfg!(feature = "traversal-brute-force") {
 pub const BVH2_STACK: usize = 64;
 /// CWBVH stack of node groups, at most one per level: 8-wide trees are shallow (the 1M-
 /// triangle suite scenes have 10–17 levels), and the host builds a balanced tree for a
-/// scene deeper than this (`accel::build_cwbvh`). Every traversal zero-initialises its
-/// stack in local memory: 24 entries instead of 32 made Cornell MIS 2.14 → 2.12 ms, NEE
-/// 0.99 → 0.97, a ReSTIR frame 2.40 → 2.34 (H100; 16 entries gained another 1–2%).
+/// scene deeper than this (`accel::build_cwbvh`). The size cost time only while every
+/// traversal zero-initialised its stack (24 entries instead of 32: a ReSTIR frame 2.40 →
+/// 2.34 ms on the H100); since `CwbvhWalk` leaves it uninitialised, it costs local memory.
 pub const CWBVH_STACK: usize = 24;
 
 /// Shadow rays stop this fraction of the way to the light's (offset) point, so that the
