@@ -37,6 +37,7 @@ fn kernel_args(integrator: Integrator, spp: u32) -> KernelOptions {
         spatial_passes: 2,
         no_temporal: false,
         no_visibility_reuse: false,
+        split_passes: false,
         max_depth: 4,
         sky: None,
         env: None,

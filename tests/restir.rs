@@ -9,8 +9,8 @@ use kernels::integrators::restir;
 use kernels::reservoir::Reservoir;
 use kernels::rng::Rng;
 use kernels::types::{
-    FrameParams, Material, INVALID, LIGHT_SAMPLING_POWER, RESTIR_HISTORY_VALID, RESTIR_TEMPORAL,
-    RESTIR_UNBIASED, RESTIR_VISIBILITY_REUSE,
+    FrameParams, Material, INVALID, LIGHT_SAMPLING_POWER, RESTIR_HISTORY_VALID,
+    RESTIR_SPLIT_PASSES, RESTIR_TEMPORAL, RESTIR_UNBIASED, RESTIR_VISIBILITY_REUSE,
 };
 use runner::cpu::CpuBackend;
 use runner::integrator::Integrator;
@@ -186,6 +186,35 @@ fn unbiased_restir_converges_to_nee_and_biased_error_is_reported() {
 }
 
 #[test]
+fn fused_passes_render_what_split_passes_do() {
+    // The fused dispatches (primary with initial, the last spatial pass with shade) read
+    // only their own pixel of what they would have written, so every frame must be the
+    // same to the bit, with history (8 frames), in both modes, for 0, 1 and 2 spatial passes.
+    let (_, scene) = scenes().remove(1);
+    for unbiased in [0, RESTIR_UNBIASED] {
+        for spatial_passes in 0..3 {
+            let image = |split| {
+                let flags = RESTIR_TEMPORAL | RESTIR_VISIBILITY_REUSE | unbiased | split;
+                let p = FrameParams {
+                    spatial_passes,
+                    ..params(&scene, 32, 24, 7, 2, flags)
+                };
+                let mut cpu = CpuBackend::new(&scene, p.width, p.height);
+                render(&mut cpu, Integrator::Restir, &p, 8, 8, false)
+                    .unwrap()
+                    .0
+            };
+            let (fused, split) = (image(0), image(RESTIR_SPLIT_PASSES));
+            assert!(fused.mean().max_element() > 0.0);
+            assert!(
+                fused.pixels == split.pixels,
+                "unbiased {unbiased}, {spatial_passes} spatial passes"
+            );
+        }
+    }
+}
+
+#[test]
 fn temporal_reuse_rejects_disoccluded_pixels() {
     // A box in front of a back wall; between frames the camera slides sideways, so wall
     // pixels that the box covered in the previous frame become visible.
@@ -268,7 +297,9 @@ fn temporal_reuse_rejects_disoccluded_pixels() {
     for y in 0..h {
         for x in 0..w {
             let i = (y * w + x) as usize;
-            let out = restir::temporal_pass::<false>(&ks, &p1, &g1, &g0, &r1, &r0, x, y, &mut rays);
+            let out = restir::temporal_pass::<false>(
+                &ks, &p1, &g1[i], r1[i], &g0, &r0, i as u32, &mut rays,
+            );
             let reprojected = restir::project(&p1.prev_camera, w, h, Vec3::from(g1[i].p));
             let took_history = out.m > r1[i].m;
             if let (true, Some((px, py))) = (on_wall(&g1[i]), reprojected) {

@@ -30,14 +30,31 @@ fn per_pixel<T: Send>(
     ray_counts: &mut [u32],
     f: impl Fn(u32, u32, &mut T, &mut u32) + Sync,
 ) {
+    // A slice of `()` takes no memory.
+    let mut none = vec![(); out.len()];
+    per_pixel_pair(width, out, &mut none, ray_counts, |x, y, o, _, rays| {
+        f(x, y, o, rays)
+    });
+}
+
+/// `per_pixel` for passes with two outputs per pixel: `f(x, y, a, b, rays)`.
+fn per_pixel_pair<A: Send, B: Send>(
+    width: u32,
+    a: &mut [A],
+    b: &mut [B],
+    ray_counts: &mut [u32],
+    f: impl Fn(u32, u32, &mut A, &mut B, &mut u32) + Sync,
+) {
     let w = width as usize;
-    out.par_chunks_mut(w)
+    a.par_chunks_mut(w)
+        .zip(b.par_chunks_mut(w))
         .zip(ray_counts.par_chunks_mut(w))
         .enumerate()
-        .for_each(|(y, (row, counts))| {
-            for (x, (o, c)) in row.iter_mut().zip(counts).enumerate() {
+        .for_each(|(y, ((row_a, row_b), counts))| {
+            let texels = row_a.iter_mut().zip(row_b).zip(counts);
+            for (x, ((oa, ob), c)) in texels.enumerate() {
                 let mut rays = 0;
-                f(x as u32, y as u32, o, &mut rays);
+                f(x as u32, y as u32, oa, ob, &mut rays);
                 *c = c.wrapping_add(rays);
             }
         });
@@ -80,7 +97,7 @@ impl CpuBackend {
                         *o = restir::primary_hit::<PLAIN>(&scene, p, x, y, rays);
                     })
                 }
-                RestirPass::Shade => {
+                RestirPass::Shade | RestirPass::SpatialShade(_) => {
                     let (g, r) = (&g_cur, &st.reservoirs[sl.res_in]);
                     per_pixel(
                         width,
@@ -88,12 +105,27 @@ impl CpuBackend {
                         &mut self.ray_counts,
                         |x, y, acc, rays| {
                             let i = (y * width + x) as usize;
-                            let l = restir::shade_pass::<PLAIN>(
-                                &scene, p, &g[i], &r[i], i as u32, rays,
-                            );
+                            let l = if pass == RestirPass::Shade {
+                                restir::shade_pass::<PLAIN>(&scene, p, &g[i], &r[i], i as u32, rays)
+                            } else {
+                                restir::spatial_shade_pass::<PLAIN>(&scene, p, g, r, x, y, rays)
+                            };
                             *acc = [acc[0] + l.x, acc[1] + l.y, acc[2] + l.z, acc[3] + 1.0];
                         },
                     );
+                }
+                RestirPass::PrimaryInitial => {
+                    let mut out = std::mem::take(&mut st.reservoirs[sl.res_out]);
+                    per_pixel_pair(
+                        width,
+                        &mut g_cur,
+                        &mut out,
+                        &mut self.ray_counts,
+                        |x, y, g, r, rays| {
+                            (*g, *r) = restir::primary_initial_pass::<PLAIN>(&scene, p, x, y, rays);
+                        },
+                    );
+                    st.reservoirs[sl.res_out] = out;
                 }
                 _ => {
                     let mut out = std::mem::take(&mut st.reservoirs[sl.res_out]);
@@ -107,7 +139,14 @@ impl CpuBackend {
                                 restir::initial_pass::<PLAIN>(&scene, p, &g[i as usize], i, rays)
                             }
                             RestirPass::Temporal => restir::temporal_pass::<PLAIN>(
-                                &scene, p, g, g_prev, res_in, res_prev, x, y, rays,
+                                &scene,
+                                p,
+                                &g[i as usize],
+                                res_in[i as usize],
+                                g_prev,
+                                res_prev,
+                                i,
+                                rays,
                             ),
                             _ => restir::spatial_pass::<PLAIN>(&scene, p, g, res_in, x, y, rays),
                         };

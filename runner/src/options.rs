@@ -151,6 +151,10 @@ pub struct KernelOptions {
     /// ReSTIR: do not test each pixel's pick for visibility before reusing it
     #[arg(long)]
     pub no_visibility_reuse: bool,
+    /// ReSTIR: run each pass as its own dispatch, so that bench times every pass (the
+    /// default fuses them into two dispatches: same image, faster)
+    #[arg(long)]
+    pub split_passes: bool,
     /// AO: occlusion rays per camera sample
     #[arg(long, default_value_t = 4, value_name = "N")]
     pub ao_rays: u32,
@@ -394,7 +398,9 @@ pub fn default_spatial_radius(width: u32, height: u32) -> f32 {
 }
 
 fn restir_flags(kernel: &KernelOptions) -> u32 {
-    use kernels::types::{RESTIR_TEMPORAL, RESTIR_UNBIASED, RESTIR_VISIBILITY_REUSE};
+    use kernels::types::{
+        RESTIR_SPLIT_PASSES, RESTIR_TEMPORAL, RESTIR_UNBIASED, RESTIR_VISIBILITY_REUSE,
+    };
     let mut flags = 0;
     if kernel.restir_bias.unwrap_or(RestirBias::COMPILED_DEFAULT) == RestirBias::Unbiased {
         flags |= RESTIR_UNBIASED;
@@ -404,6 +410,9 @@ fn restir_flags(kernel: &KernelOptions) -> u32 {
     }
     if !kernel.no_visibility_reuse {
         flags |= RESTIR_VISIBILITY_REUSE;
+    }
+    if kernel.split_passes {
+        flags |= RESTIR_SPLIT_PASSES;
     }
     flags
 }

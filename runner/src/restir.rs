@@ -2,10 +2,12 @@
 //! backends so both run exactly the same sequence. Two G-buffers alternate between
 //! "current" and "previous"; three reservoir buffers rotate so that no pass reads the
 //! buffer it writes. The temporal pass's result is the next frame's history; the spatial
-//! passes only improve what this frame shows. (Feeding spatial results back made every
+//! passes only improve what this frame shows. By default primary and initial run as one
+//! dispatch, and so do the last spatial pass and shade (see kernels' `restir.rs`), with
+//! the same results as one dispatch each (`RESTIR_SPLIT_PASSES`, which times every pass). (Feeding spatial results back made every
 //! pixel's history a blend of its neighbours' and compounded the biased mode's darkening
 //! frame after frame; it also let one unlucky visibility test empty a whole history.)
-use kernels::types::{Camera, FrameParams, RESTIR_HISTORY_VALID};
+use kernels::types::{Camera, FrameParams, RESTIR_HISTORY_VALID, RESTIR_SPLIT_PASSES};
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum RestirPass {
@@ -14,6 +16,10 @@ pub enum RestirPass {
     Temporal,
     Spatial(u32),
     Shade,
+    /// Primary and initial in one dispatch.
+    PrimaryInitial,
+    /// The last spatial pass (its index) and shade in one dispatch.
+    SpatialShade(u32),
 }
 
 impl RestirPass {
@@ -24,6 +30,8 @@ impl RestirPass {
             RestirPass::Temporal => "temporal",
             RestirPass::Spatial(_) => "spatial",
             RestirPass::Shade => "shade",
+            RestirPass::SpatialShade(_) => "spatial+shade",
+            RestirPass::PrimaryInitial => "primary+initial",
         }
     }
 
@@ -36,6 +44,14 @@ impl RestirPass {
             RestirPass::Temporal => ["entry::restir_temporal", "entry::restir_temporal_plain"],
             RestirPass::Spatial(_) => ["entry::restir_spatial", "entry::restir_spatial_plain"],
             RestirPass::Shade => ["entry::restir_shade", "entry::restir_shade_plain"],
+            RestirPass::SpatialShade(_) => [
+                "entry::restir_spatial_shade",
+                "entry::restir_spatial_shade_plain",
+            ],
+            RestirPass::PrimaryInitial => [
+                "entry::restir_primary_initial",
+                "entry::restir_primary_initial_plain",
+            ],
         };
         if plain {
             plain_variant
@@ -44,12 +60,14 @@ impl RestirPass {
         }
     }
 
-    pub const ENTRY_POINTS: [RestirPass; 5] = [
+    pub const ENTRY_POINTS: [RestirPass; 7] = [
         RestirPass::Primary,
         RestirPass::Initial,
         RestirPass::Temporal,
         RestirPass::Spatial(0),
         RestirPass::Shade,
+        RestirPass::PrimaryInitial,
+        RestirPass::SpatialShade(0),
     ];
 }
 
@@ -71,8 +89,9 @@ pub struct RestirSchedule {
 }
 
 impl RestirSchedule {
-    /// The passes of one frame with their buffers; the schedule then moves on a frame.
-    pub fn frame(&mut self, spatial_passes: u32) -> Vec<(RestirPass, Slots)> {
+    /// The passes of one frame with their buffers, fused (see the module's comment) unless
+    /// `split`; the schedule then moves on a frame.
+    pub fn frame(&mut self, spatial_passes: u32, split: bool) -> Vec<(RestirPass, Slots)> {
         let (g_cur, g_prev) = (self.parity, 1 - self.parity);
         let history = self.prev;
         // This frame's initial reservoirs, and its temporal result (the next history).
@@ -84,23 +103,42 @@ impl RestirSchedule {
             res_out,
             res_prev,
         };
-        let mut plan = vec![
-            (RestirPass::Primary, slots(temporal, initial, history)),
-            (RestirPass::Initial, slots(temporal, initial, history)),
-            (RestirPass::Temporal, slots(initial, temporal, history)),
-        ];
+        let mut plan = if split {
+            vec![
+                (RestirPass::Primary, slots(temporal, initial, history)),
+                (RestirPass::Initial, slots(temporal, initial, history)),
+            ]
+        } else {
+            vec![(
+                RestirPass::PrimaryInitial,
+                slots(temporal, initial, history),
+            )]
+        };
+        plan.push((RestirPass::Temporal, slots(initial, temporal, history)));
         // Spatial passes ping-pong between the two buffers free by now (this frame's initial
         // reservoirs and the old history), leaving the temporal result alone. A pass that
-        // reads no history binds its input there too (read-only twice is allowed).
+        // reads no history binds its input there too (read-only twice is allowed); one that
+        // writes no reservoir still binds a free buffer as its output.
         let free = [initial, history];
         let mut input = temporal;
-        for i in 0..spatial_passes {
+        let fused_last = !split && spatial_passes > 0;
+        let unfused = if fused_last {
+            spatial_passes - 1
+        } else {
+            spatial_passes
+        };
+        for i in 0..unfused {
             let out = free[i as usize % 2];
             plan.push((RestirPass::Spatial(i), slots(input, out, input)));
             input = out;
         }
         let spare = if input == initial { history } else { initial };
-        plan.push((RestirPass::Shade, slots(input, spare, input)));
+        let shade = if fused_last {
+            RestirPass::SpatialShade(unfused)
+        } else {
+            RestirPass::Shade
+        };
+        plan.push((shade, slots(input, spare, input)));
         self.prev = temporal;
         self.parity = 1 - self.parity;
         plan
@@ -132,12 +170,13 @@ impl<G, R> RestirState<G, R> {
 
     /// The passes of the next frame with their buffers, and each pass's parameters.
     pub fn frame(&mut self, params: &FrameParams) -> Vec<(RestirPass, Slots, FrameParams)> {
+        let split = params.restir_flags & RESTIR_SPLIT_PASSES != 0;
         self.schedule
-            .frame(params.spatial_passes)
+            .frame(params.spatial_passes, split)
             .into_iter()
             .map(|(pass, slots)| {
                 let mut p = *params;
-                if let RestirPass::Spatial(i) = pass {
+                if let RestirPass::Spatial(i) | RestirPass::SpatialShade(i) = pass {
                     p.spatial_pass = i;
                 }
                 (pass, slots, p)
@@ -162,15 +201,44 @@ mod tests {
     fn passes_never_read_what_they_write_and_history_carries_over() {
         let mut s = RestirSchedule::default();
         let mut last_temporal = None;
-        for frame in 0..8 {
-            let plan = s.frame(frame % 4);
+        for frame in 0..16 {
+            let split = frame >= 8;
+            let plan = s.frame(frame % 4, split);
+            let passes: Vec<RestirPass> = plan.iter().map(|(p, _)| *p).collect();
+            // Every pass runs once, in order; fused, primary with initial and the last
+            // spatial pass with shade.
+            let spatial = (0..frame % 4).map(RestirPass::Spatial);
+            let first: &[RestirPass] = if split {
+                &[RestirPass::Primary, RestirPass::Initial]
+            } else {
+                &[RestirPass::PrimaryInitial]
+            };
+            let n = frame % 4;
+            let expected: Vec<RestirPass> = if split || n == 0 {
+                first
+                    .iter()
+                    .copied()
+                    .chain([RestirPass::Temporal])
+                    .chain(spatial)
+                    .chain([RestirPass::Shade])
+                    .collect()
+            } else {
+                first
+                    .iter()
+                    .copied()
+                    .chain([RestirPass::Temporal])
+                    .chain(spatial.take(n as usize - 1))
+                    .chain([RestirPass::SpatialShade(n - 1)])
+                    .collect()
+            };
+            assert_eq!(passes, expected);
             for (pass, sl) in &plan {
                 assert_ne!(sl.res_in, sl.res_out, "{pass:?}");
                 assert_ne!(sl.res_prev, sl.res_out, "{pass:?}");
                 assert_ne!(sl.g_cur, sl.g_prev);
             }
-            // Each pass reads what the one before wrote.
-            for w in plan.windows(2).skip(1) {
+            // Each pass reads the reservoirs the one before wrote (primary writes none).
+            for w in plan.windows(2).filter(|w| w[0].0 != RestirPass::Primary) {
                 assert_eq!(
                     w[1].1.res_in, w[0].1.res_out,
                     "{:?} -> {:?}",

@@ -90,10 +90,12 @@ image_kernel!(nee_diffuse_main, path::nee_pixel::<true>);
 image_kernel!(mis_diffuse_main, path::mis_pixel::<true>);
 image_kernel!(ris_diffuse_main, path::ris_pixel::<true>);
 
-/// Declares ReSTIR's five passes (`restir.rs`) under the given names, for any scene
-/// (`PLAIN` false) or for plain ones (true).
+/// Declares ReSTIR's five passes (`restir.rs`) and two fusions (`primary_initial_pass`,
+/// `spatial_shade_pass`) under the given names, for any scene (`PLAIN` false) or for plain
+/// ones (true).
 macro_rules! restir_kernels {
-    ($plain:literal, $primary:ident, $initial:ident, $temporal:ident, $spatial:ident, $shade:ident) => {
+    ($plain:literal, $primary:ident, $initial:ident, $temporal:ident, $spatial:ident, $shade:ident,
+     $primary_initial:ident, $spatial_shade:ident) => {
         kernel!(
             threads(16, 8),
             $primary,
@@ -147,7 +149,7 @@ macro_rules! restir_kernels {
              res_out,
              res_prev| {
                 res_out[i] = restir::temporal_pass::<$plain>(
-                    &scene, params, g_cur, g_prev, res_in, res_prev, x, y, &mut rays,
+                    &scene, params, &g_cur[i], res_in[i], g_prev, res_prev, i as u32, &mut rays,
                 );
             }
         );
@@ -191,6 +193,48 @@ macro_rules! restir_kernels {
                 accum[i] += l.extend(1.0);
             }
         );
+        kernel!(
+            threads(16, 8),
+            $primary_initial,
+            |scene,
+             params,
+             x,
+             y,
+             i,
+             rays,
+             accum,
+             restir: g_cur,
+             g_prev,
+             res_in,
+             res_out,
+             res_prev| {
+                let (g, r) =
+                    restir::primary_initial_pass::<$plain>(&scene, params, x, y, &mut rays);
+                g_cur[i] = g;
+                res_out[i] = r;
+            }
+        );
+        kernel!(
+            threads(16, 8),
+            $spatial_shade,
+            |scene,
+             params,
+             x,
+             y,
+             i,
+             rays,
+             accum,
+             restir: g_cur,
+             g_prev,
+             res_in,
+             res_out,
+             res_prev| {
+                let l = restir::spatial_shade_pass::<$plain>(
+                    &scene, params, g_cur, res_in, x, y, &mut rays,
+                );
+                accum[i] += l.extend(1.0);
+            }
+        );
     };
 }
 
@@ -200,7 +244,9 @@ restir_kernels!(
     restir_initial,
     restir_temporal,
     restir_spatial,
-    restir_shade
+    restir_shade,
+    restir_primary_initial,
+    restir_spatial_shade
 );
 restir_kernels!(
     true,
@@ -208,7 +254,9 @@ restir_kernels!(
     restir_initial_plain,
     restir_temporal_plain,
     restir_spatial_plain,
-    restir_shade_plain
+    restir_shade_plain,
+    restir_primary_initial_plain,
+    restir_spatial_shade_plain
 );
 
 /// The viewer's present pass: a fullscreen triangle...

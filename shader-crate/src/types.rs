@@ -434,6 +434,9 @@ pub const RESTIR_HISTORY_VALID: u32 = 4;
 /// of skipping those shadow rays (biased). The runner sets it by `--restir-bias` (default:
 /// the `restir-unbiased` feature); tests set it directly to check both.
 pub const RESTIR_UNBIASED: u32 = 8;
+/// ReSTIR: run each pass as its own dispatch (to time each) instead of the fused default.
+/// Read by the host's schedule only (`runner/src/restir.rs`); the passes compute the same.
+pub const RESTIR_SPLIT_PASSES: u32 = 16;
 
 /// What the primary-hit pass leaves for the later ReSTIR passes. `prim == INVALID` marks a
 /// pixel whose camera ray left the scene (`n` then holds the ray's direction, for the
