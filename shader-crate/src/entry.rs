@@ -14,14 +14,38 @@ use crate::types::{
 };
 use spirv_std::spirv;
 
+/// ReSTIR's set 1 (`bindings::RESTIR`) as one value: this frame's G-buffer (written by the
+/// primary pass) and the previous frame's, the reservoirs a pass reads, writes, and reads
+/// as history (see `runner/src/restir.rs` for which buffer is which in each pass).
+struct RestirBuffers<'a> {
+    g_cur: &'a mut [GBufferTexel],
+    g_prev: &'a [GBufferTexel],
+    res_in: &'a [Reservoir],
+    res_out: &'a mut [Reservoir],
+    res_prev: &'a [Reservoir],
+}
+
 /// Declares one compute kernel over the image, in workgroups of `$wx`×`$wy` invocations (the
 /// host's `gpu::pipelines::workgroup` says the same). The scene buffers (set 0) are bound as a
 /// `SceneBuffers` named `$scene`, the accumulation as `$accum`; `$body` runs for pixel
-/// (`$x`, `$y`) with index `$i` and adds the rays it traces to `$rays`. A `restir:` list
-/// of names also binds ReSTIR's set 1 under those names.
+/// (`$x`, `$y`) with index `$i` and adds the rays it traces to `$rays`. `restir: $b` also
+/// binds ReSTIR's set 1, as a `RestirBuffers` named `$b`.
 macro_rules! kernel {
-    (threads($wx:literal, $wy:literal), $name:ident, |$scene:ident, $params:ident, $x:ident, $y:ident, $i:ident, $rays:ident, $accum:ident
-        $(, restir: $g_cur:ident, $g_prev:ident, $res_in:ident, $res_out:ident, $res_prev:ident)?| $body:block) => {
+    (threads($wx:literal, $wy:literal), $name:ident, |$scene:ident, $params:ident, $x:ident, $y:ident, $i:ident, $rays:ident, $accum:ident| $body:block) => {
+        kernel!(@fn ($wx, $wy), $name, $scene, $params, $x, $y, $i, $rays, $accum, [], {}, $body);
+    };
+    (threads($wx:literal, $wy:literal), $name:ident, |$scene:ident, $params:ident, $x:ident, $y:ident, $i:ident, $rays:ident, $accum:ident, restir: $restir:ident| $body:block) => {
+        kernel!(@fn ($wx, $wy), $name, $scene, $params, $x, $y, $i, $rays, $accum, [
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 0)] g_cur: &mut [GBufferTexel],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 1)] g_prev: &[GBufferTexel],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 2)] res_in: &[Reservoir],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 3)] res_out: &mut [Reservoir],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 4)] res_prev: &[Reservoir],
+        ], {
+            let mut $restir = RestirBuffers { g_cur, g_prev, res_in, res_out, res_prev };
+        }, $body);
+    };
+    (@fn ($wx:literal, $wy:literal), $name:ident, $scene:ident, $params:ident, $x:ident, $y:ident, $i:ident, $rays:ident, $accum:ident, [$($set1:tt)*], {$($bind_set1:tt)*}, $body:block) => {
         #[spirv(compute(threads($wx, $wy)))]
         #[allow(unused_variables, unused_mut)]
         pub fn $name(
@@ -37,13 +61,7 @@ macro_rules! kernel {
             #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] textures: &[TextureInfo],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] texels: &[u32],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] env_distribution: &[f32],
-            $(
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 0)] $g_cur: &mut [GBufferTexel],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 1)] $g_prev: &[GBufferTexel],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 2)] $res_in: &[Reservoir],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 3)] $res_out: &mut [Reservoir],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 4)] $res_prev: &[Reservoir],
-            )?
+            $($set1)*
         ) {
             if id.x >= $params.width || id.y >= $params.height {
                 return;
@@ -51,6 +69,7 @@ macro_rules! kernel {
             let $scene = SceneBuffers {
                 triangles, materials, nodes, lights, shading, textures, texels, env_distribution,
             };
+            $($bind_set1)*
             let ($x, $y) = (id.x, id.y);
             let $i = (id.y * $params.width + id.x) as usize;
             let mut $rays = 0u32;
@@ -90,151 +109,53 @@ image_kernel!(nee_diffuse_main, path::nee_pixel::<true>);
 image_kernel!(mis_diffuse_main, path::mis_pixel::<true>);
 image_kernel!(ris_diffuse_main, path::ris_pixel::<true>);
 
+/// Declares one ReSTIR pass: `kernel!` in ReSTIR's workgroup shape (16×8, the host's
+/// `gpu::pipelines::RESTIR_WORKGROUP`).
+macro_rules! restir_kernel {
+    ($name:ident, $($kernel:tt)*) => {
+        kernel!(threads(16, 8), $name, $($kernel)*);
+    };
+}
+
 /// Declares ReSTIR's five passes (`restir.rs`) and two fusions (`primary_initial_pass`,
 /// `spatial_shade_pass`) under the given names, for any scene (`PLAIN` false) or for plain
 /// ones (true).
+#[rustfmt::skip] // one line of names per pass (rustfmt would stack the names, one a line)
 macro_rules! restir_kernels {
     ($plain:literal, $primary:ident, $initial:ident, $temporal:ident, $spatial:ident, $shade:ident,
      $primary_initial:ident, $spatial_shade:ident) => {
-        kernel!(
-            threads(16, 8),
-            $primary,
-            |scene,
-             params,
-             x,
-             y,
-             i,
-             rays,
-             accum,
-             restir: g_cur,
-             g_prev,
-             res_in,
-             res_out,
-             res_prev| {
-                g_cur[i] = restir::primary_hit::<$plain>(&scene, params, x, y, &mut rays);
-            }
-        );
-        kernel!(
-            threads(16, 8),
-            $initial,
-            |scene,
-             params,
-             x,
-             y,
-             i,
-             rays,
-             accum,
-             restir: g_cur,
-             g_prev,
-             res_in,
-             res_out,
-             res_prev| {
-                res_out[i] =
-                    restir::initial_pass::<$plain>(&scene, params, &g_cur[i], i as u32, &mut rays);
-            }
-        );
-        kernel!(
-            threads(16, 8),
-            $temporal,
-            |scene,
-             params,
-             x,
-             y,
-             i,
-             rays,
-             accum,
-             restir: g_cur,
-             g_prev,
-             res_in,
-             res_out,
-             res_prev| {
-                res_out[i] = restir::temporal_pass::<$plain>(
-                    &scene, params, &g_cur[i], res_in[i], g_prev, res_prev, i as u32, &mut rays,
-                );
-            }
-        );
-        kernel!(
-            threads(16, 8),
-            $spatial,
-            |scene,
-             params,
-             x,
-             y,
-             i,
-             rays,
-             accum,
-             restir: g_cur,
-             g_prev,
-             res_in,
-             res_out,
-             res_prev| {
-                res_out[i] =
-                    restir::spatial_pass::<$plain>(&scene, params, g_cur, res_in, x, y, &mut rays);
-            }
-        );
-        kernel!(
-            threads(16, 8),
-            $shade,
-            |scene,
-             params,
-             x,
-             y,
-             i,
-             rays,
-             accum,
-             restir: g_cur,
-             g_prev,
-             res_in,
-             res_out,
-             res_prev| {
-                let l = restir::shade_pass::<$plain>(
-                    &scene, params, &g_cur[i], &res_in[i], i as u32, &mut rays,
-                );
-                accum[i] += l.extend(1.0);
-            }
-        );
-        kernel!(
-            threads(16, 8),
-            $primary_initial,
-            |scene,
-             params,
-             x,
-             y,
-             i,
-             rays,
-             accum,
-             restir: g_cur,
-             g_prev,
-             res_in,
-             res_out,
-             res_prev| {
-                let (g, r) =
-                    restir::primary_initial_pass::<$plain>(&scene, params, x, y, &mut rays);
-                g_cur[i] = g;
-                res_out[i] = r;
-            }
-        );
-        kernel!(
-            threads(16, 8),
-            $spatial_shade,
-            |scene,
-             params,
-             x,
-             y,
-             i,
-             rays,
-             accum,
-             restir: g_cur,
-             g_prev,
-             res_in,
-             res_out,
-             res_prev| {
-                let l = restir::spatial_shade_pass::<$plain>(
-                    &scene, params, g_cur, res_in, x, y, &mut rays,
-                );
-                accum[i] += l.extend(1.0);
-            }
-        );
+        restir_kernel!($primary, |scene, params, x, y, i, rays, accum, restir: b| {
+            b.g_cur[i] = restir::primary_hit::<$plain>(&scene, params, x, y, &mut rays);
+        });
+        restir_kernel!($initial, |scene, params, x, y, i, rays, accum, restir: b| {
+            b.res_out[i] =
+                restir::initial_pass::<$plain>(&scene, params, &b.g_cur[i], i as u32, &mut rays);
+        });
+        restir_kernel!($temporal, |scene, params, x, y, i, rays, accum, restir: b| {
+            b.res_out[i] = restir::temporal_pass::<$plain>(
+                &scene, params, &b.g_cur[i], b.res_in[i], b.g_prev, b.res_prev, i as u32, &mut rays,
+            );
+        });
+        restir_kernel!($spatial, |scene, params, x, y, i, rays, accum, restir: b| {
+            b.res_out[i] =
+                restir::spatial_pass::<$plain>(&scene, params, b.g_cur, b.res_in, x, y, &mut rays);
+        });
+        restir_kernel!($shade, |scene, params, x, y, i, rays, accum, restir: b| {
+            let (g, r) = (&b.g_cur[i], &b.res_in[i]);
+            let l = restir::shade_pass::<$plain>(&scene, params, g, r, i as u32, &mut rays);
+            accum[i] += l.extend(1.0);
+        });
+        restir_kernel!($primary_initial, |scene, params, x, y, i, rays, accum, restir: b| {
+            let (g, r) = restir::primary_initial_pass::<$plain>(&scene, params, x, y, &mut rays);
+            b.g_cur[i] = g;
+            b.res_out[i] = r;
+        });
+        restir_kernel!($spatial_shade, |scene, params, x, y, i, rays, accum, restir: b| {
+            let l = restir::spatial_shade_pass::<$plain>(
+                &scene, params, b.g_cur, b.res_in, x, y, &mut rays,
+            );
+            accum[i] += l.extend(1.0);
+        });
     };
 }
 
