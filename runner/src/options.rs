@@ -151,8 +151,9 @@ pub struct KernelOptions {
     /// ReSTIR: do not test each pixel's pick for visibility before reusing it
     #[arg(long)]
     pub no_visibility_reuse: bool,
-    /// ReSTIR: run each pass as its own dispatch, so that bench times every pass (the
-    /// default fuses them into two dispatches: same image, faster)
+    /// ReSTIR: run each pass as its own dispatch, so that bench times every pass (by default
+    /// primary runs with initial and the last spatial pass with shade: three dispatches, the
+    /// same image, faster)
     #[arg(long)]
     pub split_passes: bool,
     /// AO: occlusion rays per camera sample
