@@ -2,11 +2,12 @@
 //! backends so both run exactly the same sequence. Two G-buffers alternate between
 //! "current" and "previous"; three reservoir buffers rotate so that no pass reads the
 //! buffer it writes. The temporal pass's result is the next frame's history; the spatial
-//! passes only improve what this frame shows. By default primary and initial run as one
-//! dispatch, and so do the last spatial pass and shade (see kernels' `restir.rs`), with
-//! the same results as one dispatch each (`RESTIR_SPLIT_PASSES`, which times every pass). (Feeding spatial results back made every
+//! passes only improve what this frame shows. (Feeding spatial results back made every
 //! pixel's history a blend of its neighbours' and compounded the biased mode's darkening
-//! frame after frame; it also let one unlucky visibility test empty a whole history.)
+//! frame after frame; it also let one unlucky visibility test empty a whole history.) By
+//! default primary and initial run as one dispatch, and so do the last spatial pass and
+//! shade (see kernels' `restir.rs`), with the same results as one dispatch each
+//! (`RESTIR_SPLIT_PASSES`, which times every pass).
 use kernels::types::{Camera, FrameParams, RESTIR_HISTORY_VALID, RESTIR_SPLIT_PASSES};
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]

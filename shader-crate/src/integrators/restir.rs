@@ -27,7 +27,7 @@
 //! and the last spatial pass with 5 (`spatial_shade_pass`): each of those passes reads only
 //! its own pixel of what the one before wrote, so fusing them changes no value; it saves
 //! the G-buffer texel's and the reservoir's round trip through memory and a dispatch's ramp
-//! (many-lights, 1080p, H100: 2.18 → 2.05 ms a frame). The temporal pass could join the
+//! (many-lights, 1080p, H100: 2.20 → 2.04 ms a frame). The temporal pass could join the
 //! first dispatch too, but that kernel was slower than the two apart (1.82 against 1.41 ms,
 //! unbiased). The split schedule (one dispatch per pass) times each pass.
 //!
@@ -296,8 +296,8 @@ fn balance(a: f32, b: f32) -> f32 {
 /// Pass 3: merge the reservoir of this surface point in the previous frame. The history's
 /// light is a candidate only if this point sees it (visibility is part of the target here),
 /// so a hidden history sample never displaces this frame's own.
-#[allow(clippy::too_many_arguments)]
 /// `g` and `cur` are this pixel's texel and initial reservoir.
+#[allow(clippy::too_many_arguments)]
 pub fn temporal_pass<const PLAIN: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
