@@ -53,6 +53,12 @@ pub fn selection_pdf(lights: &[Light], mode: u32, index: u32) -> f32 {
 /// Pick a light triangle and a uniform point on it (four draws from `rng`).
 pub fn sample_light(scene: &SceneBuffers, mode: u32, rng: &mut Rng) -> LightSample {
     let index = select_light(scene.lights, mode, rng.next_u32(), rng.next_f32());
+    sample_on_light(scene, mode, index, rng)
+}
+
+/// A uniform point on light `index` of the table, chosen by `select_light` (two draws
+/// from `rng`).
+pub fn sample_on_light(scene: &SceneBuffers, mode: u32, index: u32, rng: &mut Rng) -> LightSample {
     let triangle = scene.lights[index as usize].triangle;
     let tri = scene.triangles[triangle as usize];
     let (b1, b2) = uniform_triangle(rng.next_f32(), rng.next_f32());

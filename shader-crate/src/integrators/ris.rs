@@ -11,7 +11,7 @@ use crate::bvh::{SceneBuffers, SurfaceHit};
 use crate::env::{escaped_radiance, infinite_direction, infinite_pdf};
 use crate::glam::Vec3;
 use crate::integrators::path::infinite_probability;
-use crate::lights::{geometry_term, sample_light};
+use crate::lights::{geometry_term, sample_on_light, select_light};
 use crate::math::{luminance, PI};
 use crate::reservoir::{Reservoir, DIRECTION_SAMPLE};
 use crate::rng::Rng;
@@ -136,12 +136,16 @@ pub fn sample_visible<const ALL_DIFFUSE: bool>(
 
 /// Stream `params.candidates` light samples through a reservoir (not yet finalised): each
 /// a point on an emissive triangle or, with the map's and the sun's share of NEE's light
-/// choice, a direction of theirs.
+/// choice, a direction of theirs. Which triangle a candidate is on comes from `choice`
+/// (two numbers a candidate, drawn whatever the candidate turns out to be), the rest from
+/// `rng`: ReSTIR gives every pixel of a warp the same `choice` stream, so that their k-th
+/// candidates read one light's data (see `restir::light_choice_rng`).
 pub fn initial_candidates<const ALL_DIFFUSE: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
     sp: &ShadingPoint,
     rng: &mut Rng,
+    choice: &mut Rng,
 ) -> Reservoir {
     let mut r = Reservoir::empty();
     let p_infinite = infinite_probability::<ALL_DIFFUSE>(params);
@@ -151,6 +155,7 @@ pub fn initial_candidates<const ALL_DIFFUSE: bool>(
     let mut i = 0;
     while i < params.candidates {
         i += 1;
+        let (u_slot, u_coin) = (choice.next_u32(), choice.next_f32());
         // A number for the choice only when there is one: other scenes keep their streams.
         let u_choice = if p_infinite > 0.0 {
             rng.next_f32()
@@ -172,7 +177,8 @@ pub fn initial_candidates<const ALL_DIFFUSE: bool>(
             r.update(DIRECTION_SAMPLE, e1, e2, weight, p_hat, rng.next_f32());
             continue;
         }
-        let ls = sample_light(scene, params.light_sampling, rng);
+        let index = select_light(scene.lights, params.light_sampling, u_slot, u_coin);
+        let ls = sample_on_light(scene, params.light_sampling, index, rng);
         let p_hat = target_pdf::<ALL_DIFFUSE>(sp, ls.p, ls.n, ls.emission);
         r.update(
             ls.triangle,
@@ -229,7 +235,9 @@ pub fn direct_ris<const ALL_DIFFUSE: bool>(
     rng: &mut Rng,
     rays: &mut u32,
 ) -> Vec3 {
-    let mut r = initial_candidates::<ALL_DIFFUSE>(scene, params, sp, rng);
+    // Each pixel chooses its candidates' lights on its own here.
+    let mut choice = Rng::from_seed(rng.next_u32());
+    let mut r = initial_candidates::<ALL_DIFFUSE>(scene, params, sp, rng, &mut choice);
     r.finalize(r.m);
     shade_reservoir::<ALL_DIFFUSE>(scene, params, &r, sp, rays)
 }
@@ -279,7 +287,8 @@ mod tests {
         let (mut mismatches, mut empty) = (0, 0);
         for i in 0..200_000 {
             let mut rng = Rng::new(i, 0, 0, 1);
-            let r = initial_candidates::<false>(&scene, &params, &sp, &mut rng);
+            let mut choice = Rng::from_seed(rng.next_u32());
+            let r = initial_candidates::<false>(&scene, &params, &sp, &mut rng, &mut choice);
             if !r.has_sample() {
                 empty += 1;
                 continue;
