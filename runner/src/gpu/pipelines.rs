@@ -18,6 +18,12 @@ pub const IMAGE_WORKGROUP: (u32, u32) = (8, 8);
 /// H100, 1–3% faster than 8×8 for every ReSTIR scene measured, while NEE and pt on the 1M
 /// suite scenes were 2–4% slower at 16×8 (README, "Workgroup shape").
 pub const RESTIR_WORKGROUP: (u32, u32) = (16, 8);
+// The initial pass's light tiles are meant to be its warps (32 invocations, whole rows of
+// the workgroup): if the workgroup changes shape, the tiles must follow it.
+const _: () = {
+    let tile = kernels::integrators::restir::LIGHT_TILE;
+    assert!(tile.0 == RESTIR_WORKGROUP.0 && tile.0 * tile.1 == 32);
+};
 
 /// The workgroup size of a kernel's entry points.
 pub fn workgroup(kernel: Kernel) -> (u32, u32) {
