@@ -122,7 +122,14 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
             tris,
             &ray,
             &want,
-            &bvh2_traverse::<false>(&t2, &Cutouts::NONE, &b2.nodes, &ray, f32::INFINITY, false),
+            &bvh2_traverse::<false>(
+                &t2,
+                &Cutouts::NONE,
+                bytemuck::cast_slice(&b2.nodes),
+                &ray,
+                f32::INFINITY,
+                false,
+            ),
             &b2.order,
         );
         check(
@@ -130,7 +137,14 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
             tris,
             &ray,
             &want,
-            &cwbvh_traverse::<false>(&tc, &Cutouts::NONE, &cw.nodes, &ray, f32::INFINITY, false),
+            &cwbvh_traverse::<false>(
+                &tc,
+                &Cutouts::NONE,
+                bytemuck::cast_slice(&cw.nodes),
+                &ray,
+                f32::INFINITY,
+                false,
+            ),
             &cw.order,
         );
         // Any-hit with a limit around the closest hit: blocked iff something is nearer.
@@ -141,12 +155,28 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
         };
         let blocked = brute_force_any_hit(tris, &Cutouts::NONE, &ray, limit);
         assert_eq!(
-            bvh2_traverse::<false>(&t2, &Cutouts::NONE, &b2.nodes, &ray, limit, true).is_hit(),
+            bvh2_traverse::<false>(
+                &t2,
+                &Cutouts::NONE,
+                bytemuck::cast_slice(&b2.nodes),
+                &ray,
+                limit,
+                true
+            )
+            .is_hit(),
             blocked,
             "bvh2 any-hit {ray:?} {limit}"
         );
         assert_eq!(
-            cwbvh_traverse::<false>(&tc, &Cutouts::NONE, &cw.nodes, &ray, limit, true).is_hit(),
+            cwbvh_traverse::<false>(
+                &tc,
+                &Cutouts::NONE,
+                bytemuck::cast_slice(&cw.nodes),
+                &ray,
+                limit,
+                true
+            )
+            .is_hit(),
             blocked,
             "cwbvh any-hit {ray:?} {limit}"
         );

@@ -4,8 +4,11 @@
 //! pipelines without asking for them, so this builds the same pipelines (the same SPIR-V,
 //! the same descriptor set layouts from `kernels::bindings`) through ash directly.
 //!
-//! `cargo run --release --example kernel_stats [-- --ir DIR]`: with `--ir`, each
-//! executable's internal representations (where the driver gives any) go to DIR.
+//! `cargo run --release --example kernel_stats [-- --ir DIR] [--cache FILE]`: with `--ir`,
+//! each executable's internal representations (where the driver gives any; NVIDIA's 580
+//! driver gives none) go to DIR; with `--cache`, the pipeline cache the pipelines were made
+//! in goes to FILE (NVIDIA's holds each kernel's machine code as an ELF image that
+//! `nvdisasm` reads).
 use std::ffi::CStr;
 
 use ash::vk;
@@ -17,12 +20,14 @@ const EXTENSION: &CStr = ash::khr::pipeline_executable_properties::NAME;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let ir_dir = args
-        .iter()
-        .position(|a| a == "--ir")
-        .and_then(|i| args.get(i + 1))
-        .map(std::path::PathBuf::from);
-    if let Err(e) = unsafe { run(ir_dir.as_deref()) } {
+    let path_after = |flag: &str| {
+        args.iter()
+            .position(|a| a == flag)
+            .and_then(|i| args.get(i + 1))
+            .map(std::path::PathBuf::from)
+    };
+    let (ir_dir, cache_file) = (path_after("--ir"), path_after("--cache"));
+    if let Err(e) = unsafe { run(ir_dir.as_deref(), cache_file.as_deref()) } {
         eprintln!("error: {e}");
         std::process::exit(1);
     }
@@ -68,7 +73,10 @@ unsafe fn set_layout(
         .map_err(|e| format!("descriptor set layout: {e}"))
 }
 
-unsafe fn run(ir_dir: Option<&std::path::Path>) -> Result<(), String> {
+unsafe fn run(
+    ir_dir: Option<&std::path::Path>,
+    cache_file: Option<&std::path::Path>,
+) -> Result<(), String> {
     let entry = ash::Entry::load().map_err(|e| format!("no Vulkan loader: {e}"))?;
     let app = vk::ApplicationInfo::default().api_version(vk::API_VERSION_1_2);
     let instance = entry
@@ -145,6 +153,9 @@ unsafe fn run(ir_dir: Option<&std::path::Path>) -> Result<(), String> {
         .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None)
         .map_err(|e| format!("shader module: {e}"))?;
 
+    let cache = device
+        .create_pipeline_cache(&vk::PipelineCacheCreateInfo::default(), None)
+        .map_err(|e| format!("pipeline cache: {e}"))?;
     let mut flags = vk::PipelineCreateFlags::CAPTURE_STATISTICS_KHR;
     if ir_dir.is_some() {
         flags |= vk::PipelineCreateFlags::CAPTURE_INTERNAL_REPRESENTATIONS_KHR;
@@ -169,7 +180,7 @@ unsafe fn run(ir_dir: Option<&std::path::Path>) -> Result<(), String> {
                 .stage(stage)
                 .layout(layout);
             let pipeline = device
-                .create_compute_pipelines(vk::PipelineCache::null(), &[info], None)
+                .create_compute_pipelines(cache, &[info], None)
                 .map_err(|(_, e)| format!("{name}: pipeline: {e}"))?[0];
             let pipeline_info = vk::PipelineInfoKHR::default().pipeline(pipeline);
             let list = executables
@@ -194,6 +205,13 @@ unsafe fn run(ir_dir: Option<&std::path::Path>) -> Result<(), String> {
             device.destroy_pipeline(pipeline, None);
         }
     }
+    if let Some(file) = cache_file {
+        let data = device
+            .get_pipeline_cache_data(cache)
+            .map_err(|e| format!("pipeline cache data: {e}"))?;
+        std::fs::write(file, data).map_err(|e| format!("{}: {e}", file.display()))?;
+    }
+    device.destroy_pipeline_cache(cache, None);
     device.destroy_shader_module(module, None);
     device.destroy_pipeline_layout(image_layout, None);
     device.destroy_pipeline_layout(restir_layout, None);

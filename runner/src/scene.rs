@@ -279,7 +279,7 @@ impl Scene {
         kernels::bvh::SceneBuffers {
             triangles: &self.triangles,
             materials: &self.materials,
-            nodes: &self.nodes,
+            nodes: bytemuck::cast_slice(&self.nodes),
             lights: &self.lights,
             shading: &self.attributes.shading,
             textures: &self.attributes.textures,

@@ -2,8 +2,8 @@
 //! BVH, or over a compressed 8-wide BVH (CWBVH). `SceneBuffers` uses the traversal picked by cargo
 //! feature; every variant answers the same question, and the tests hold them to it.
 use crate::bsdf::{Bsdf, BSDF_CONDUCTOR, BSDF_DIELECTRIC};
-use crate::glam::Vec2;
 use crate::glam::Vec3;
+use crate::glam::{UVec4, Vec2};
 use crate::intersect::{intersect_aabb, Hit, Ray, TriangleTester};
 use crate::math::vec3;
 use crate::rng::{pcg_hash, Rng};
@@ -51,7 +51,9 @@ const SHADOW_RAY_END: f32 = 0.9999;
 pub struct SceneBuffers<'a> {
     pub triangles: &'a [Triangle],
     pub materials: &'a [Material],
-    pub nodes: &'a [BvhNode],
+    /// The BVH's nodes as 16-byte words (`BvhNode`s back to back): read a word at a time,
+    /// every node load is 128-bit wide whatever the driver makes of a struct's fields.
+    pub nodes: &'a [UVec4],
     pub lights: &'a [Light],
     /// Vertex normals and texture coordinates, indexed by `Triangle::shading`.
     pub shading: &'a [TriangleShading],
@@ -379,7 +381,7 @@ fn test_leaf<const PLAIN: bool>(
 pub fn bvh2_traverse<const PLAIN: bool>(
     triangles: &[Triangle],
     cutouts: &Cutouts,
-    nodes: &[Bvh2Node],
+    nodes: &[UVec4],
     ray: &Ray,
     t_max: f32,
     any: bool,
@@ -390,7 +392,11 @@ pub fn bvh2_traverse<const PLAIN: bool>(
     if nodes.is_empty() {
         return hit;
     }
-    let root = nodes[0];
+    let node_at = |i: u32| {
+        let w = 2 * i as usize;
+        Bvh2Node::from_words(nodes[w], nodes[w + 1])
+    };
+    let root = node_at(0);
     if intersect_aabb(ray.origin, inv_dir, vec3(root.lo), vec3(root.hi), hit.t) == f32::INFINITY {
         return hit;
     }
@@ -398,7 +404,7 @@ pub fn bvh2_traverse<const PLAIN: bool>(
     let mut sp = 0usize;
     let mut current = 0u32;
     loop {
-        let node = nodes[current as usize];
+        let node = node_at(current);
         let mut next_valid = false;
         if node.count > 0 {
             if test_leaf::<PLAIN>(
@@ -407,7 +413,7 @@ pub fn bvh2_traverse<const PLAIN: bool>(
                 return hit;
             }
         } else {
-            let (l, r) = (nodes[node.first as usize], nodes[node.first as usize + 1]);
+            let (l, r) = (node_at(node.first), node_at(node.first + 1));
             let tl = intersect_aabb(ray.origin, inv_dir, vec3(l.lo), vec3(l.hi), hit.t);
             let tr = intersect_aabb(ray.origin, inv_dir, vec3(r.lo), vec3(r.hi), hit.t);
             let (near, far, t_near, t_far) = if tl <= tr {
@@ -556,7 +562,7 @@ fn cwbvh_node_hits(node: &CwBvhNode, origin: Vec3, inv_dir: Vec3, oct_inv: u32, 
 pub fn cwbvh_traverse<const PLAIN: bool>(
     triangles: &[Triangle],
     cutouts: &Cutouts,
-    nodes: &[CwBvhNode],
+    nodes: &[UVec4],
     ray: &Ray,
     t_max: f32,
     any: bool,
@@ -629,7 +635,7 @@ impl CwbvhWalk {
         &mut self,
         triangles: &[Triangle],
         cutouts: &Cutouts,
-        nodes: &[CwBvhNode],
+        nodes: &[UVec4],
         any: bool,
     ) -> bool {
         let mut tri_base = 0u32;
@@ -648,7 +654,14 @@ impl CwbvhWalk {
                 self.sp += 1;
             }
             count!(NODES);
-            let node = nodes[child as usize];
+            let w = 5 * child as usize;
+            let node = CwBvhNode::from_words([
+                nodes[w],
+                nodes[w + 1],
+                nodes[w + 2],
+                nodes[w + 3],
+                nodes[w + 4],
+            ]);
             let hits = cwbvh_node_hits(&node, self.origin, self.inv_dir, self.oct_inv, self.hit.t);
             self.group_base = node.child_base_idx;
             self.group_bits = (hits & INTERIOR_HITS) | node.imask();

@@ -4,8 +4,8 @@
 //! The bindings are those of `bindings.rs` (set 0: `bindings::SCENE`, set 1 of the ReSTIR
 //! passes: `bindings::RESTIR`), written out as literals because SPIR-V attributes take no
 //! constants; tests/bindings.rs checks the compiled module against the tables.
-use crate::bvh::{BvhNode, SceneBuffers};
-use crate::glam::{UVec3, Vec4};
+use crate::bvh::SceneBuffers;
+use crate::glam::{UVec3, UVec4, Vec4};
 use crate::integrators::{ao, path, restir, PixelResult};
 use crate::present::{display_colour, fullscreen_triangle, PresentParams};
 use crate::reservoir::Reservoir;
@@ -53,7 +53,7 @@ macro_rules! kernel {
             #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] $params: &FrameParams,
             #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] triangles: &[Triangle],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] materials: &[Material],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[BvhNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[UVec4],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] lights: &[Light],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] $accum: &mut [Vec4],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] ray_counts: &mut [u32],

@@ -4,7 +4,7 @@
 #[cfg(not(target_arch = "spirv"))]
 use bytemuck::{Pod, Zeroable};
 
-use crate::glam::Vec3;
+use crate::glam::{UVec4, Vec3};
 use crate::math::vec3;
 
 /// Marks "no triangle": a miss, or an empty slot.
@@ -529,7 +529,47 @@ pub struct CwBvhNode {
     pub child_max_z: [u32; 2],
 }
 
+impl Bvh2Node {
+    /// The node from its two 16-byte words (how the kernels read the node buffer).
+    pub fn from_words(a: UVec4, b: UVec4) -> Self {
+        Self {
+            lo: [
+                f32::from_bits(a.x),
+                f32::from_bits(a.y),
+                f32::from_bits(a.z),
+            ],
+            first: a.w,
+            hi: [
+                f32::from_bits(b.x),
+                f32::from_bits(b.y),
+                f32::from_bits(b.z),
+            ],
+            count: b.w,
+        }
+    }
+}
+
 impl CwBvhNode {
+    /// The node from its five 16-byte words (how the kernels read the node buffer).
+    pub fn from_words(w: [UVec4; 5]) -> Self {
+        Self {
+            p: [
+                f32::from_bits(w[0].x),
+                f32::from_bits(w[0].y),
+                f32::from_bits(w[0].z),
+            ],
+            e_imask: w[0].w,
+            child_base_idx: w[1].x,
+            primitive_base_idx: w[1].y,
+            child_meta: [w[1].z, w[1].w],
+            child_min_x: [w[2].x, w[2].y],
+            child_max_x: [w[2].z, w[2].w],
+            child_min_y: [w[3].x, w[3].y],
+            child_max_y: [w[3].z, w[3].w],
+            child_min_z: [w[4].x, w[4].y],
+            child_max_z: [w[4].z, w[4].w],
+        }
+    }
     /// Cell size of the node's grid per axis, 2^(e − 127): the exponent byte moved into an
     /// f32's exponent field.
     pub fn scale(&self) -> Vec3 {
@@ -579,3 +619,26 @@ const _: () = {
     assert!(core::mem::size_of::<Bvh2Node>() == 32);
     assert!(core::mem::size_of::<CwBvhNode>() == 80);
 };
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Words with distinct values, so a field read from the wrong word shows.
+    fn words<const N: usize>() -> [UVec4; N] {
+        core::array::from_fn(|i| {
+            let b = 4 * i as u32;
+            UVec4::new(b + 1, b + 2, b + 3, b + 4) * 0x0101_0101
+        })
+    }
+
+    #[test]
+    fn nodes_read_as_words_are_the_nodes_stored() {
+        let w = words::<5>();
+        let node = CwBvhNode::from_words(w);
+        assert_eq!(bytemuck::cast::<CwBvhNode, [UVec4; 5]>(node), w);
+        let w = words::<2>();
+        let node = Bvh2Node::from_words(w[0], w[1]);
+        assert_eq!(bytemuck::cast::<Bvh2Node, [UVec4; 2]>(node), w);
+    }
+}
