@@ -3,7 +3,7 @@
 //! feature; every variant answers the same question, and the tests hold them to it.
 use crate::bsdf::{Bsdf, BSDF_CONDUCTOR, BSDF_DIELECTRIC};
 use crate::glam::Vec3;
-use crate::glam::{UVec4, Vec2};
+use crate::glam::{UVec2, UVec4, Vec2};
 use crate::intersect::{intersect_aabb, Hit, Ray, TriangleTester};
 use crate::math::vec3;
 use crate::rng::{pcg_hash, Rng};
@@ -588,10 +588,11 @@ struct CwbvhWalk {
     oct_inv: u32,
     /// The nearest hit so far (t = the ray's end while none).
     hit: Hit,
-    /// Entries below `sp` are written before they are read: left uninitialised, as every
-    /// traversal used to spend time zeroing them in local memory.
-    stack_base: [MaybeUninit<u32>; CWBVH_STACK],
-    stack_bits: [MaybeUninit<u32>; CWBVH_STACK],
+    /// Node groups (child base index, hit bits), one 64-bit entry each: one local-memory
+    /// access per push or pop instead of two. Entries below `sp` are written before they
+    /// are read: left uninitialised, as every traversal used to spend time zeroing them in
+    /// local memory.
+    stack: [MaybeUninit<UVec2>; CWBVH_STACK],
     sp: usize,
     /// The node group being visited: child base index and hit bits.
     group_base: u32,
@@ -606,8 +607,7 @@ impl CwbvhWalk {
             inv_dir: Vec3::ZERO,
             oct_inv: 0,
             hit: Hit::none(t_max),
-            stack_base: [MaybeUninit::uninit(); CWBVH_STACK],
-            stack_bits: [MaybeUninit::uninit(); CWBVH_STACK],
+            stack: [MaybeUninit::uninit(); CWBVH_STACK],
             sp: 0,
             group_base: 0,
             group_bits: 0,
@@ -653,8 +653,8 @@ impl CwbvhWalk {
             let relative = (self.group_bits & 0xff & !(0xffff_ffffu32 << slot)).count_ones();
             let child = self.group_base + relative;
             if self.group_bits & INTERIOR_HITS != 0 && self.sp < CWBVH_STACK {
-                self.stack_base[self.sp] = MaybeUninit::new(self.group_base);
-                self.stack_bits[self.sp] = MaybeUninit::new(self.group_bits);
+                self.stack[self.sp] =
+                    MaybeUninit::new(UVec2::new(self.group_base, self.group_bits));
                 self.sp += 1;
             }
             count!(NODES);
@@ -695,8 +695,9 @@ impl CwbvhWalk {
             self.sp -= 1;
             // SAFETY: entry `sp` was pushed (written) before `sp` passed it.
             unsafe {
-                self.group_base = self.stack_base[self.sp].assume_init();
-                self.group_bits = self.stack_bits[self.sp].assume_init();
+                let entry = self.stack[self.sp].assume_init();
+                self.group_base = entry.x;
+                self.group_bits = entry.y;
             }
         }
         false
