@@ -4,7 +4,7 @@
 mod common;
 
 use common::{closed_box, icosphere};
-use glam::Vec3;
+use glam::{UVec4, Vec3};
 use kernels::bvh::{
     brute_force_any_hit, brute_force_closest_hit, bvh2_traverse, cwbvh_traverse, Cutouts,
 };
@@ -105,6 +105,11 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
     let b2 = build_bvh2(tris, quality);
     let cw = build_cwbvh(tris, quality);
     let (t2, tc) = (reorder(tris, &b2.order), reorder(tris, &cw.order));
+    // The node buffers as the kernels read them (16-byte words).
+    let (n2, nc): (&[UVec4], &[UVec4]) = (
+        bytemuck::cast_slice(&b2.nodes),
+        bytemuck::cast_slice(&cw.nodes),
+    );
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
     for t in tris {
         let (a, b, c) = t.vertices();
@@ -122,14 +127,7 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
             tris,
             &ray,
             &want,
-            &bvh2_traverse::<false>(
-                &t2,
-                &Cutouts::NONE,
-                bytemuck::cast_slice(&b2.nodes),
-                &ray,
-                f32::INFINITY,
-                false,
-            ),
+            &bvh2_traverse::<false>(&t2, &Cutouts::NONE, n2, &ray, f32::INFINITY, false),
             &b2.order,
         );
         check(
@@ -137,14 +135,7 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
             tris,
             &ray,
             &want,
-            &cwbvh_traverse::<false>(
-                &tc,
-                &Cutouts::NONE,
-                bytemuck::cast_slice(&cw.nodes),
-                &ray,
-                f32::INFINITY,
-                false,
-            ),
+            &cwbvh_traverse::<false>(&tc, &Cutouts::NONE, nc, &ray, f32::INFINITY, false),
             &cw.order,
         );
         // Any-hit with a limit around the closest hit: blocked iff something is nearer.
@@ -155,28 +146,12 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
         };
         let blocked = brute_force_any_hit(tris, &Cutouts::NONE, &ray, limit);
         assert_eq!(
-            bvh2_traverse::<false>(
-                &t2,
-                &Cutouts::NONE,
-                bytemuck::cast_slice(&b2.nodes),
-                &ray,
-                limit,
-                true
-            )
-            .is_hit(),
+            bvh2_traverse::<false>(&t2, &Cutouts::NONE, n2, &ray, limit, true).is_hit(),
             blocked,
             "bvh2 any-hit {ray:?} {limit}"
         );
         assert_eq!(
-            cwbvh_traverse::<false>(
-                &tc,
-                &Cutouts::NONE,
-                bytemuck::cast_slice(&cw.nodes),
-                &ray,
-                limit,
-                true
-            )
-            .is_hit(),
+            cwbvh_traverse::<false>(&tc, &Cutouts::NONE, nc, &ray, limit, true).is_hit(),
             blocked,
             "cwbvh any-hit {ray:?} {limit}"
         );

@@ -2,8 +2,7 @@
 //! BVH, or over a compressed 8-wide BVH (CWBVH). `SceneBuffers` uses the traversal picked by cargo
 //! feature; every variant answers the same question, and the tests hold them to it.
 use crate::bsdf::{Bsdf, BSDF_CONDUCTOR, BSDF_DIELECTRIC};
-use crate::glam::Vec3;
-use crate::glam::{UVec2, UVec4, Vec2};
+use crate::glam::{UVec2, UVec4, Vec2, Vec3};
 use crate::intersect::{intersect_aabb, Hit, Ray, TriangleTester};
 use crate::math::vec3;
 use crate::rng::{pcg_hash, Rng};
@@ -392,11 +391,7 @@ pub fn bvh2_traverse<const PLAIN: bool>(
     if nodes.is_empty() {
         return hit;
     }
-    let node_at = |i: u32| {
-        let w = 2 * i as usize;
-        Bvh2Node::from_words(nodes[w], nodes[w + 1])
-    };
-    let root = node_at(0);
+    let root = Bvh2Node::read(nodes, 0);
     if intersect_aabb(ray.origin, inv_dir, vec3(root.lo), vec3(root.hi), hit.t) == f32::INFINITY {
         return hit;
     }
@@ -404,7 +399,7 @@ pub fn bvh2_traverse<const PLAIN: bool>(
     let mut sp = 0usize;
     let mut current = 0u32;
     loop {
-        let node = node_at(current);
+        let node = Bvh2Node::read(nodes, current);
         let mut next_valid = false;
         if node.count > 0 {
             if test_leaf::<PLAIN>(
@@ -413,7 +408,10 @@ pub fn bvh2_traverse<const PLAIN: bool>(
                 return hit;
             }
         } else {
-            let (l, r) = (node_at(node.first), node_at(node.first + 1));
+            let (l, r) = (
+                Bvh2Node::read(nodes, node.first),
+                Bvh2Node::read(nodes, node.first + 1),
+            );
             let tl = intersect_aabb(ray.origin, inv_dir, vec3(l.lo), vec3(l.hi), hit.t);
             let tr = intersect_aabb(ray.origin, inv_dir, vec3(r.lo), vec3(r.hi), hit.t);
             let (near, far, t_near, t_far) = if tl <= tr {
@@ -658,14 +656,7 @@ impl CwbvhWalk {
                 self.sp += 1;
             }
             count!(NODES);
-            let w = 5 * child as usize;
-            let node = CwBvhNode::from_words([
-                nodes[w],
-                nodes[w + 1],
-                nodes[w + 2],
-                nodes[w + 3],
-                nodes[w + 4],
-            ]);
+            let node = CwBvhNode::read(nodes, child);
             let hits = cwbvh_node_hits(&node, self.origin, self.inv_dir, self.oct_inv, self.hit.t);
             self.group_base = node.child_base_idx;
             self.group_bits = (hits & INTERIOR_HITS) | node.imask();

@@ -530,7 +530,16 @@ pub struct CwBvhNode {
 }
 
 impl Bvh2Node {
-    /// The node from its two 16-byte words (how the kernels read the node buffer).
+    /// 16-byte words a node takes in the node buffer, which the kernels read a word at a time.
+    pub const WORDS: usize = 2;
+
+    /// Node `i` of a node buffer read as words.
+    pub fn read(nodes: &[UVec4], i: u32) -> Self {
+        let w = Self::WORDS * i as usize;
+        Self::from_words(nodes[w], nodes[w + 1])
+    }
+
+    /// The node from its two 16-byte words.
     pub fn from_words(a: UVec4, b: UVec4) -> Self {
         Self {
             lo: [
@@ -550,8 +559,23 @@ impl Bvh2Node {
 }
 
 impl CwBvhNode {
-    /// The node from its five 16-byte words (how the kernels read the node buffer).
-    pub fn from_words(w: [UVec4; 5]) -> Self {
+    /// 16-byte words a node takes in the node buffer, which the kernels read a word at a time.
+    pub const WORDS: usize = 5;
+
+    /// Node `i` of a node buffer read as words.
+    pub fn read(nodes: &[UVec4], i: u32) -> Self {
+        let w = Self::WORDS * i as usize;
+        Self::from_words([
+            nodes[w],
+            nodes[w + 1],
+            nodes[w + 2],
+            nodes[w + 3],
+            nodes[w + 4],
+        ])
+    }
+
+    /// The node from its five 16-byte words.
+    pub fn from_words(w: [UVec4; Self::WORDS]) -> Self {
         Self {
             p: [
                 f32::from_bits(w[0].x),
@@ -616,8 +640,8 @@ pub mod cwbvh_meta {
 
 #[cfg(not(target_arch = "spirv"))]
 const _: () = {
-    assert!(core::mem::size_of::<Bvh2Node>() == 32);
-    assert!(core::mem::size_of::<CwBvhNode>() == 80);
+    assert!(core::mem::size_of::<Bvh2Node>() == 16 * Bvh2Node::WORDS);
+    assert!(core::mem::size_of::<CwBvhNode>() == 16 * CwBvhNode::WORDS);
 };
 
 #[cfg(test)]
