@@ -1,14 +1,13 @@
 //! What the driver made of each kernel: the compile-time statistics a Vulkan driver reports
-//! through VK_KHR_pipeline_executable_properties (on NVIDIA: registers, shared and local
-//! memory, instructions; on lavapipe: LLVM's), one line per entry point. wgpu creates its
-//! pipelines without asking for them, so this builds the same pipelines (the same SPIR-V,
-//! the same descriptor set layouts from `kernels::bindings`) through ash directly.
+//! through VK_KHR_pipeline_executable_properties, one line per entry point (NVIDIA 580:
+//! registers, binary size, stack, local and shared memory; lavapipe does not offer the
+//! extension). wgpu creates its pipelines without asking for them, so this builds the same
+//! pipelines (the same SPIR-V, the same descriptor set layouts from `kernels::bindings`)
+//! through ash directly: `cargo run --release --example kernel_stats`.
 //!
-//! `cargo run --release --example kernel_stats [-- --ir DIR] [--cache FILE]`: with `--ir`,
-//! each executable's internal representations (where the driver gives any; NVIDIA's 580
-//! driver gives none) go to DIR; with `--cache`, the pipeline cache the pipelines were made
-//! in goes to FILE (NVIDIA's holds each kernel's machine code as an ELF image that
-//! `nvdisasm` reads).
+//! Neither internal representations nor the pipeline cache gave NVIDIA's machine code (the
+//! 580 driver returns no representation, and its cache holds no ELF image), so this asks
+//! for the statistics alone.
 use std::ffi::CStr;
 
 use ash::vk;
@@ -19,15 +18,7 @@ use runner::integrator::Integrator;
 const EXTENSION: &CStr = ash::khr::pipeline_executable_properties::NAME;
 
 fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let path_after = |flag: &str| {
-        args.iter()
-            .position(|a| a == flag)
-            .and_then(|i| args.get(i + 1))
-            .map(std::path::PathBuf::from)
-    };
-    let (ir_dir, cache_file) = (path_after("--ir"), path_after("--cache"));
-    if let Err(e) = unsafe { run(ir_dir.as_deref(), cache_file.as_deref()) } {
+    if let Err(e) = unsafe { run() } {
         eprintln!("error: {e}");
         std::process::exit(1);
     }
@@ -73,10 +64,7 @@ unsafe fn set_layout(
         .map_err(|e| format!("descriptor set layout: {e}"))
 }
 
-unsafe fn run(
-    ir_dir: Option<&std::path::Path>,
-    cache_file: Option<&std::path::Path>,
-) -> Result<(), String> {
+unsafe fn run() -> Result<(), String> {
     let entry = ash::Entry::load().map_err(|e| format!("no Vulkan loader: {e}"))?;
     let app = vk::ApplicationInfo::default().api_version(vk::API_VERSION_1_2);
     let instance = entry
@@ -153,13 +141,6 @@ unsafe fn run(
         .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None)
         .map_err(|e| format!("shader module: {e}"))?;
 
-    let cache = device
-        .create_pipeline_cache(&vk::PipelineCacheCreateInfo::default(), None)
-        .map_err(|e| format!("pipeline cache: {e}"))?;
-    let mut flags = vk::PipelineCreateFlags::CAPTURE_STATISTICS_KHR;
-    if ir_dir.is_some() {
-        flags |= vk::PipelineCreateFlags::CAPTURE_INTERNAL_REPRESENTATIONS_KHR;
-    }
     let mut seen = std::collections::HashSet::new();
     for kernel in Integrator::ALL.into_iter().flat_map(Integrator::kernels) {
         let layout = match kernel {
@@ -176,20 +157,20 @@ unsafe fn run(
                 .module(module)
                 .name(&cname);
             let info = vk::ComputePipelineCreateInfo::default()
-                .flags(flags)
+                .flags(vk::PipelineCreateFlags::CAPTURE_STATISTICS_KHR)
                 .stage(stage)
                 .layout(layout);
             let pipeline = device
-                .create_compute_pipelines(cache, &[info], None)
+                .create_compute_pipelines(vk::PipelineCache::null(), &[info], None)
                 .map_err(|(_, e)| format!("{name}: pipeline: {e}"))?[0];
             let pipeline_info = vk::PipelineInfoKHR::default().pipeline(pipeline);
             let list = executables
                 .get_pipeline_executable_properties(&pipeline_info)
                 .map_err(|e| format!("{name}: executables: {e}"))?;
-            for (index, _) in list.iter().enumerate() {
+            for index in 0..list.len() as u32 {
                 let exe = vk::PipelineExecutableInfoKHR::default()
                     .pipeline(pipeline)
-                    .executable_index(index as u32);
+                    .executable_index(index);
                 let stats = executables
                     .get_pipeline_executable_statistics(&exe)
                     .map_err(|e| format!("{name}: statistics: {e}"))?;
@@ -198,20 +179,10 @@ unsafe fn run(
                     .map(|s| format!("{}={}", text(&s.name), value(s)))
                     .collect();
                 println!("{name}: {}", row.join(", "));
-                if let Some(dir) = ir_dir {
-                    dump_ir(&executables, &exe, dir, name, index)?;
-                }
             }
             device.destroy_pipeline(pipeline, None);
         }
     }
-    if let Some(file) = cache_file {
-        let data = device
-            .get_pipeline_cache_data(cache)
-            .map_err(|e| format!("pipeline cache data: {e}"))?;
-        std::fs::write(file, data).map_err(|e| format!("{}: {e}", file.display()))?;
-    }
-    device.destroy_pipeline_cache(cache, None);
     device.destroy_shader_module(module, None);
     device.destroy_pipeline_layout(image_layout, None);
     device.destroy_pipeline_layout(restir_layout, None);
@@ -219,45 +190,5 @@ unsafe fn run(
     device.destroy_descriptor_set_layout(restir, None);
     device.destroy_device(None);
     instance.destroy_instance(None);
-    Ok(())
-}
-
-/// Write each internal representation of one executable to `dir` (two calls: sizes, then
-/// the data).
-unsafe fn dump_ir(
-    executables: &ash::khr::pipeline_executable_properties::Device,
-    exe: &vk::PipelineExecutableInfoKHR,
-    dir: &std::path::Path,
-    name: &str,
-    index: usize,
-) -> Result<(), String> {
-    let mut reps = executables
-        .get_pipeline_executable_internal_representations(exe)
-        .map_err(|e| format!("{name}: internal representations: {e}"))?;
-    let mut buffers: Vec<Vec<u8>> = reps.iter().map(|r| vec![0u8; r.data_size]).collect();
-    for (r, b) in reps.iter_mut().zip(buffers.iter_mut()) {
-        r.p_data = b.as_mut_ptr().cast();
-    }
-    let fp = executables.fp();
-    let mut count = reps.len() as u32;
-    (fp.get_pipeline_executable_internal_representations_khr)(
-        executables.device(),
-        exe,
-        &mut count,
-        reps.as_mut_ptr(),
-    )
-    .result()
-    .map_err(|e| format!("{name}: internal representations: {e}"))?;
-    std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
-    for (i, (r, b)) in reps.iter().zip(&buffers).enumerate() {
-        let file = dir.join(format!("{}-{index}-{i}.txt", name.replace("::", "_")));
-        std::fs::write(&file, &b[..r.data_size]).map_err(|e| e.to_string())?;
-        println!(
-            "  {} ({} bytes): {}",
-            text(&r.name),
-            r.data_size,
-            file.display()
-        );
-    }
     Ok(())
 }
