@@ -94,16 +94,23 @@ fn check(name: &str, tris: &[Triangle], ray: &Ray, want: &Hit, got: &Hit, order:
     }
 }
 
-/// Every build quality gives a tree that finds what brute force finds.
+/// Every build quality, with and without pre-splitting (Karras & Aila's share and a large
+/// one), gives a tree that finds what brute force finds: a split triangle's boxes
+/// together hold all of it.
 fn agree_with_brute_force(tris: &[Triangle], rays: u32, seed: u32) {
-    for quality in [BvhQuality::Fast, BvhQuality::Auto, BvhQuality::High] {
-        agree_at_quality(tris, rays, seed, quality);
+    for (quality, splits) in [
+        (BvhQuality::Fast, 0.0),
+        (BvhQuality::Auto, 0.0),
+        (BvhQuality::High, 0.3),
+        (BvhQuality::Auto, 2.0),
+    ] {
+        agree_at_quality(tris, rays, seed, quality, splits);
     }
 }
 
-fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality) {
-    let b2 = build_bvh2(tris, quality);
-    let cw = build_cwbvh(tris, quality);
+fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality, splits: f32) {
+    let b2 = build_bvh2(tris, quality, splits, &|_| true);
+    let cw = build_cwbvh(tris, quality, splits, &|_| true);
     let (t2, tc) = (reorder(tris, &b2.order), reorder(tris, &cw.order));
     // The node buffers as the kernels read them (16-byte words).
     let (n2, nc): (&[UVec4], &[UVec4]) = (
@@ -207,12 +214,13 @@ fn depths_of_built_bvhs_are_measured() {
     // A balanced-ish scene is shallow; a chain of coincident triangles is refused with a
     // message instead of being traversed with an overflowing stack.
     let tris = icosphere(Vec3::ZERO, 1.0, 3, 0);
-    let d2 = runner::accel::bvh2_depth(&build_bvh2(&tris, BvhQuality::Auto).nodes);
-    let dc = runner::accel::cwbvh_depth(&build_cwbvh(&tris, BvhQuality::Auto).nodes);
+    let d2 = runner::accel::bvh2_depth(&build_bvh2(&tris, BvhQuality::Auto, 0.0, &|_| true).nodes);
+    let dc =
+        runner::accel::cwbvh_depth(&build_cwbvh(&tris, BvhQuality::Auto, 0.0, &|_| true).nodes);
     assert!((8..40).contains(&d2), "bvh2 depth {d2}");
     assert!((2..12).contains(&dc) && dc < d2, "cwbvh depth {dc}");
     assert_eq!(
-        runner::accel::bvh2_depth(&build_bvh2(&tris[..1], BvhQuality::Auto).nodes),
+        runner::accel::bvh2_depth(&build_bvh2(&tris[..1], BvhQuality::Auto, 0.0, &|_| true).nodes),
         1
     );
 }
@@ -254,8 +262,8 @@ fn deep_bvhs_are_rebuilt_balanced_and_traverse_right() {
         })
         .collect();
     let (b2, bc) = (
-        build_bvh2(&stack, BvhQuality::Auto),
-        build_cwbvh(&stack, BvhQuality::Auto),
+        build_bvh2(&stack, BvhQuality::Auto, 0.0, &|_| true),
+        build_cwbvh(&stack, BvhQuality::Auto, 0.0, &|_| true),
     );
     let d2 = runner::accel::bvh2_depth(&b2.nodes);
     let dc = runner::accel::cwbvh_depth(&bc.nodes);
@@ -295,7 +303,7 @@ fn generated_rocks_scene() {
 #[test]
 fn cwbvh_children_are_popped_front_to_back() {
     let scene = runner::generate::rocks(50_000);
-    let built = build_cwbvh(&scene.triangles, BvhQuality::Auto);
+    let built = build_cwbvh(&scene.triangles, BvhQuality::Auto, 0.0, &|_| true);
     let byte = |w: [u32; 2], i: usize| (w[i / 4] >> (8 * (i % 4))) & 0xff;
     let (mut nearest_first, mut cases) = (0u32, 0u32);
     for node in &built.nodes {

@@ -187,6 +187,7 @@ fn the_cornell_box_as_gltf_renders_as_the_obj_does() {
         up_axis: runner::options::UpAxis::Y,
         fov: None,
         bvh_quality: None,
+        bvh_splits: None,
     })
     .unwrap();
     let cam = scene.camera.expect("the glTF camera is the default view");
@@ -256,6 +257,7 @@ fn node_transforms_place_the_meshes() {
         up_axis: runner::options::UpAxis::Y,
         fov: None,
         bvh_quality: None,
+        bvh_splits: None,
     };
     let moved = runner::scene::load(&opts(d.join("moved.gltf"))).unwrap();
     let original = runner::scene::cornell_box().unwrap();

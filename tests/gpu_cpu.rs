@@ -21,6 +21,7 @@ fn scene_args(width: u32, height: u32) -> SceneOptions {
         up_axis: UpAxis::Y,
         fov: None,
         bvh_quality: None,
+        bvh_splits: None,
     }
 }
 

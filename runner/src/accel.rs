@@ -21,20 +21,26 @@ impl Boundable for PaddedBox {
     }
 }
 
-fn padded_boxes(triangles: &[Triangle]) -> Vec<PaddedBox> {
-    triangles
+/// The padded box of each triangle, or of each part of a triangle where pre-splitting
+/// (`presplit`) gave it several, and the triangle each box holds (part of).
+fn padded_boxes(
+    triangles: &[Triangle],
+    splits: f32,
+    splittable: &(dyn Fn(&Triangle) -> bool + Sync),
+) -> (Vec<PaddedBox>, Vec<u32>) {
+    let split = crate::presplit::split_boxes(triangles, splits, splittable);
+    let boxes = split
+        .boxes
         .iter()
-        .map(|t| {
-            let (p0, p1, p2) = t.vertices();
-            let lo = p0.min(p1).min(p2);
-            let hi = p0.max(p1).max(p2);
+        .map(|&(lo, hi)| {
             let pad = lo.abs().max(hi.abs()).max_element() * 1e-6 + 1e-30;
             PaddedBox(Aabb::new(
                 Vec3A::from(lo - Vec3::splat(pad)),
                 Vec3A::from(hi + Vec3::splat(pad)),
             ))
         })
-        .collect()
+        .collect();
+    (boxes, split.refs)
 }
 
 use glam::Vec3;
@@ -81,6 +87,32 @@ pub fn quality() -> BvhQuality {
     }
 }
 
+/// Extra boxes pre-splitting may add, as a share of the triangles (`--bvh-splits`;
+/// `presplit`), unless told otherwise: none. Measured on the H200 (README, "Benchmark
+/// suite"), Karras & Aila's 0.3 made AO on four of the five suite scenes 1–17% slower and
+/// Cornell MIS 21% (fewer triangle tests, more node visits), rocks-1m AO and city-1m pt
+/// 3–4% faster: a lever for scenes of large triangles, not a default.
+pub const DEFAULT_SPLITS: f32 = 0.0;
+/// The most `--bvh-splits` accepts: each split box costs memory (a triangle slot, 48 B)
+/// and build time like a triangle.
+pub const MAX_SPLITS: f32 = 4.0;
+
+/// The pre-splitting share every build of this process uses (`set_splits`), as f32 bits.
+static SPLITS: std::sync::atomic::AtomicU32 =
+    std::sync::atomic::AtomicU32::new(DEFAULT_SPLITS.to_bits());
+
+/// Choose the pre-splitting share for the scenes this process builds from now on (`None`:
+/// `DEFAULT_SPLITS`).
+pub fn set_splits(share: Option<f32>) {
+    let share = share.unwrap_or(DEFAULT_SPLITS);
+    SPLITS.store(share.to_bits(), std::sync::atomic::Ordering::Relaxed);
+}
+
+/// The share chosen with `set_splits` (`DEFAULT_SPLITS` unless told).
+pub fn splits() -> f32 {
+    f32::from_bits(SPLITS.load(std::sync::atomic::Ordering::Relaxed))
+}
+
 /// The share of nodes considered for reinsertion for `triangles` triangles.
 pub fn reinsertion_share(quality: BvhQuality, triangles: usize) -> f32 {
     match quality {
@@ -106,7 +138,8 @@ fn params(quality: BvhQuality, triangles: usize) -> BvhBuildParams {
 }
 
 /// A BVH over a triangle list: nodes plus the leaf order of the triangles
-/// (`order[i]` = index in the input of the triangle that goes to slot i).
+/// (`order[i]` = index in the input of the triangle that goes to slot i; a pre-split
+/// triangle goes to several slots).
 pub struct Built<N> {
     pub nodes: Vec<N>,
     pub order: Vec<u32>,
@@ -185,12 +218,17 @@ fn balanced_bvh2(boxes: &[PaddedBox]) -> obvhs::bvh2::Bvh2 {
 }
 
 /// Binary BVH, leaves of up to 4 triangles after obvhs's SAH-driven collapse.
-pub fn build_bvh2(triangles: &[Triangle], quality: BvhQuality) -> Built<Bvh2Node> {
+pub fn build_bvh2(
+    triangles: &[Triangle],
+    quality: BvhQuality,
+    splits: f32,
+    splittable: &(dyn Fn(&Triangle) -> bool + Sync),
+) -> Built<Bvh2Node> {
     let start = Instant::now();
-    let boxes = padded_boxes(triangles);
+    let (boxes, refs) = padded_boxes(triangles, splits, splittable);
     let config = BvhBuildParams {
         max_prims_per_leaf: 4,
-        ..params(quality, triangles.len())
+        ..params(quality, boxes.len())
     };
     let flatten = |bvh: &obvhs::bvh2::Bvh2| -> Vec<Bvh2Node> {
         bvh.nodes
@@ -217,7 +255,7 @@ pub fn build_bvh2(triangles: &[Triangle], quality: BvhQuality) -> Built<Bvh2Node
     }
     Built {
         nodes,
-        order: bvh.primitive_indices,
+        order: triangle_order(&bvh.primitive_indices, &refs),
         build_time: start.elapsed(),
         balanced,
     }
@@ -225,9 +263,14 @@ pub fn build_bvh2(triangles: &[Triangle], quality: BvhQuality) -> Built<Bvh2Node
 
 /// CWBVH: PLOC BVH2 with one triangle per leaf, converted by obvhs to 8-wide compressed
 /// nodes with up to 3 triangles per leaf child and children ordered for traversal.
-pub fn build_cwbvh(triangles: &[Triangle], quality: BvhQuality) -> Built<CwBvhNode> {
+pub fn build_cwbvh(
+    triangles: &[Triangle],
+    quality: BvhQuality,
+    splits: f32,
+    splittable: &(dyn Fn(&Triangle) -> bool + Sync),
+) -> Built<CwBvhNode> {
     let start = Instant::now();
-    let boxes = padded_boxes(triangles);
+    let (boxes, refs) = padded_boxes(triangles, splits, splittable);
     // Same 80 bytes, read as words on our side.
     let flatten = |bvh: &obvhs::cwbvh::CwBvh| {
         bytemuck::cast_slice::<obvhs::cwbvh::node::CwBvhNode, CwBvhNode>(&bvh.nodes).to_vec()
@@ -238,7 +281,7 @@ pub fn build_cwbvh(triangles: &[Triangle], quality: BvhQuality) -> Built<CwBvhNo
     } else {
         obvhs::cwbvh::builder::build_cwbvh(
             &boxes,
-            params(quality, triangles.len()),
+            params(quality, boxes.len()),
             &mut Duration::default(),
         )
     };
@@ -250,16 +293,27 @@ pub fn build_cwbvh(triangles: &[Triangle], quality: BvhQuality) -> Built<CwBvhNo
     }
     Built {
         nodes,
-        order: bvh.primitive_indices,
+        order: triangle_order(&bvh.primitive_indices, &refs),
         build_time: start.elapsed(),
         balanced,
     }
 }
 
+/// The leaf order of the triangles from that of their boxes (`refs[box]` = its triangle).
+fn triangle_order(box_order: &[u32], refs: &[u32]) -> Vec<u32> {
+    box_order.iter().map(|&b| refs[b as usize]).collect()
+}
+
 /// The BVH of the traversal compiled into the kernels (cargo feature), of the quality
-/// chosen with `set_quality`. Brute force needs none: it gets a single dummy node so GPU
+/// and pre-splitting chosen with `set_quality` and `set_splits` (only of the triangles
+/// `splittable` allows). Brute force needs none: it gets a single dummy node so GPU
 /// bindings stay valid.
-pub fn build(triangles: &[Triangle]) -> Built<kernels::bvh::BvhNode> {
+pub fn build(
+    triangles: &[Triangle],
+    splittable: &(dyn Fn(&Triangle) -> bool + Sync),
+) -> Built<kernels::bvh::BvhNode> {
+    #[cfg(feature = "traversal-brute-force")]
+    let _ = splittable;
     #[cfg(feature = "traversal-brute-force")]
     return Built {
         nodes: vec![Default::default()],
@@ -268,9 +322,9 @@ pub fn build(triangles: &[Triangle]) -> Built<kernels::bvh::BvhNode> {
         balanced: false,
     };
     #[cfg(all(feature = "traversal-bvh2", not(feature = "traversal-brute-force")))]
-    return build_bvh2(triangles, quality());
+    return build_bvh2(triangles, quality(), splits(), splittable);
     #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
-    return build_cwbvh(triangles, quality());
+    return build_cwbvh(triangles, quality(), splits(), splittable);
 }
 
 /// Depth of a tree rooted at node 0 whose interior nodes' children are the nodes

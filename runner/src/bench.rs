@@ -25,6 +25,9 @@ use crate::scene::{load as load_scene, Scene};
 pub struct BenchReport {
     pub scene: String,
     pub triangles: usize,
+    /// Triangle slots in the BVH's leaves: more than `triangles` where large ones were
+    /// pre-split (`--bvh-splits`).
+    pub bvh_slots: usize,
     pub bvh_build_ms: f64,
     /// `--bvh-quality` of the build.
     pub bvh_quality: String,
@@ -94,8 +97,8 @@ impl BenchReport {
         let _ = writeln!(s, "triangles      {}", self.triangles);
         let _ = writeln!(
             s,
-            "BVH            {} (build {:.1} ms, quality {})",
-            self.traversal, self.bvh_build_ms, self.bvh_quality
+            "BVH            {} (build {:.1} ms, quality {}, {} triangle slots)",
+            self.traversal, self.bvh_build_ms, self.bvh_quality, self.bvh_slots
         );
         let _ = writeln!(
             s,
@@ -137,12 +140,13 @@ impl BenchReport {
 
     pub fn json(&self) -> String {
         format!(
-            "{{\"scene\":{:?},\"triangles\":{},\"traversal\":{:?},\"bvh_build_ms\":{:.3},\"bvh_quality\":{:?},\"load_ms\":{:.3},\"backend\":{:?},\
+            "{{\"scene\":{:?},\"triangles\":{},\"bvh_slots\":{},\"traversal\":{:?},\"bvh_build_ms\":{:.3},\"bvh_quality\":{:?},\"load_ms\":{:.3},\"backend\":{:?},\
              \"integrator\":{:?},\"width\":{},\"height\":{},\"spp\":{},\"rays_per_frame\":{},\
              \"frame_ms_min\":{:.4},\"frame_ms_median\":{:.4},\"pass_ms_min\":{:.4},\"pass_ms_median\":{:.4},\
              \"rays_per_second\":{:.1},\"breakdown_ms\":{{{}}}}}",
             self.scene,
             self.triangles,
+            self.bvh_slots,
             self.traversal,
             self.bvh_build_ms,
             self.bvh_quality,
@@ -268,7 +272,8 @@ fn bench_scene(args: &BenchArgs, loaded: &Scene) -> Result<BenchReport> {
             .as_ref()
             .map(|p| p.display().to_string())
             .unwrap_or_else(|| "cornell-box".into()),
-        triangles: scene.triangles.len(),
+        triangles: scene.triangle_count,
+        bvh_slots: scene.triangles.len(),
         bvh_build_ms: scene.bvh_build_time.as_secs_f64() * 1e3,
         bvh_quality: format!("{:?}", args.scene.bvh_quality.unwrap_or_default()).to_lowercase(),
         load_ms: scene.load_time.as_secs_f64() * 1e3,

@@ -35,6 +35,7 @@ pub fn load_and_render_bytes(data: &[u8]) -> Result<crate::output::Image> {
         up_axis: UpAxis::Y,
         fov: None,
         bvh_quality: None,
+        bvh_splits: None,
     };
     let camera = crate::camera::camera(&args, &scene)?;
     let params = FrameParams {

@@ -21,6 +21,7 @@ pub mod memory;
 pub mod options;
 pub mod output;
 pub mod ply_scene;
+pub mod presplit;
 pub mod render;
 pub mod restir;
 pub mod scene;

@@ -56,7 +56,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let k = &args.kernel;
     eprintln!(
         "{} triangles ({} emissive), {}x{}, {} spp x {} frame(s), integrator {}{}, BVH {}, backend {}",
-        scene.triangles.len(),
+        scene.triangle_count,
         scene.lights.len(),
         params.width,
         params.height,

@@ -26,8 +26,10 @@ pub struct CameraHint {
 
 #[derive(Clone, Debug, Default)]
 pub struct Scene {
-    /// Triangles in BVH leaf order.
+    /// Triangles in BVH leaf order; a pre-split triangle (`presplit`) once per slot.
     pub triangles: Vec<Triangle>,
+    /// How many distinct triangles the scene has.
+    pub triangle_count: usize,
     /// The BVH of the traversal compiled into the kernels.
     pub nodes: Vec<BvhNode>,
     pub bvh_build_time: std::time::Duration,
@@ -248,7 +250,10 @@ impl Scene {
         attributes.check(&triangles, &materials)?;
         let mut triangles = triangles;
         attributes.mark_cutouts(&mut triangles, &materials);
-        let bvh = crate::accel::build(&triangles);
+        // Emitters keep one slot each: the light table holds every slot's emitter once.
+        let bvh = crate::accel::build(&triangles, &|t| {
+            !materials[t.material as usize].is_emissive()
+        });
         crate::accel::check_depth(&bvh.nodes)?;
         if bvh.balanced {
             warnings.push(
@@ -258,10 +263,12 @@ impl Scene {
                     .to_string(),
             );
         }
+        let triangle_count = triangles.len();
         let mut triangles = crate::accel::reorder(&triangles, &bvh.order);
         let lights = crate::lights::build_light_table(&mut triangles, &materials, &attributes);
         Ok(Self {
             triangles,
+            triangle_count,
             nodes: bvh.nodes,
             bvh_build_time: bvh.build_time,
             load_time: std::time::Duration::ZERO,
@@ -286,6 +293,17 @@ impl Scene {
             texels: &self.attributes.texels,
             env_distribution: &self.attributes.env_distribution,
         }
+    }
+
+    /// Each distinct triangle once, in leaf order: a pre-split triangle's slots are copies
+    /// of it, and no two distinct triangles are equal (`without_duplicates`).
+    pub fn distinct_triangles(&self) -> Vec<Triangle> {
+        let mut seen = rustc_hash::FxHashSet::default();
+        self.triangles
+            .iter()
+            .filter(|t| seen.insert(bytemuck::bytes_of(*t)))
+            .copied()
+            .collect()
     }
 
     pub fn bounds(&self) -> (Vec3, Vec3) {
@@ -1240,6 +1258,7 @@ pub fn load(args: &SceneOptions) -> Result<Scene> {
     let name = path.to_string_lossy();
     let started = std::time::Instant::now();
     crate::accel::set_quality(args.bvh_quality.unwrap_or_default());
+    crate::accel::set_splits(args.bvh_splits);
     let mut scene = if crate::gltf_scene::is_gltf(&path) {
         crate::gltf_scene::load(&path)?
     } else if crate::ply_scene::is_ply(&path) {
@@ -1263,7 +1282,8 @@ pub fn load(args: &SceneOptions) -> Result<Scene> {
         eprintln!("warning: {w}");
     }
     log::debug!(
-        "scene '{name}': {} triangles, {} emissive, {} materials; {} BVH: {} nodes in {:.1} ms",
+        "scene '{name}': {} triangles ({} BVH slots), {} emissive, {} materials; {} BVH: {} nodes in {:.1} ms",
+        scene.triangle_count,
         scene.triangles.len(),
         scene.lights.len(),
         scene.materials.len(),
