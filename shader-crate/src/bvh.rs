@@ -45,6 +45,24 @@ pub const CWBVH_STACK: usize = 24;
 /// light's own triangle never counts as an occluder.
 const SHADOW_RAY_END: f32 = 0.9999;
 
+/// The shadow ray between surface point (p, n) and light point (q, nq), and where it
+/// ends: from and to the offset end points, off the surface on the side the light is on
+/// (it can be below: transmission).
+pub fn shadow_ray(p: Vec3, n: Vec3, q: Vec3, nq: Vec3) -> (Ray, f32) {
+    let n = if (q - p).dot(n) >= 0.0 { n } else { -n };
+    let origin = offset_ray_origin(p, n);
+    let target = offset_ray_origin(q, nq);
+    let d = target - origin;
+    let dist = d.length();
+    (Ray::new(origin, d / dist), dist * SHADOW_RAY_END)
+}
+
+/// The shadow ray from surface point (p, n) in direction `dir` (to the sky: unbounded).
+pub fn shadow_ray_towards(p: Vec3, n: Vec3, dir: Vec3) -> Ray {
+    let n = if dir.dot(n) >= 0.0 { n } else { -n };
+    Ray::new(offset_ray_origin(p, n), dir)
+}
+
 /// The scene buffers a kernel reads, bundled so integrators take one argument.
 #[derive(Copy, Clone)]
 pub struct SceneBuffers<'a> {
@@ -126,25 +144,34 @@ impl<'a> SceneBuffers<'a> {
     /// cut-outs (the plain-scene kernels, see `path::trace_path`): traversal then carries
     /// no mask test, whose registers cost plain scenes 2–14% (H100).
     pub fn closest_hit<const PLAIN: bool>(&self, ray: &Ray, t_max: f32) -> Hit {
-        let cut = self.cutouts();
-        #[cfg(feature = "traversal-brute-force")]
-        return brute_force_closest_hit(self.triangles, &cut, ray, t_max);
-        #[cfg(all(feature = "traversal-bvh2", not(feature = "traversal-brute-force")))]
-        return bvh2_traverse::<PLAIN>(self.triangles, &cut, self.nodes, ray, t_max, false);
-        #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
-        return cwbvh_traverse::<PLAIN>(self.triangles, &cut, self.nodes, ray, t_max, false);
+        self.trace::<PLAIN>(ray, t_max, false)
     }
 
     /// Whether anything blocks `ray` before `t_max` (`PLAIN` as for `closest_hit`).
     pub fn any_hit<const PLAIN: bool>(&self, ray: &Ray, t_max: f32) -> bool {
+        self.trace::<PLAIN>(ray, t_max, true).is_hit()
+    }
+
+    /// `closest_hit`, or with `any` the first hit found (`any_hit`): one traversal for
+    /// both, so that a kernel tracing both kinds of ray in turn can do so from one call
+    /// site (`path::trace_path`), holding one inlined traversal and its stack.
+    pub fn trace<const PLAIN: bool>(&self, ray: &Ray, t_max: f32, any: bool) -> Hit {
         let cut = self.cutouts();
         #[cfg(feature = "traversal-brute-force")]
-        return brute_force_any_hit(self.triangles, &cut, ray, t_max);
+        return if any {
+            // Only whether it hit counts for `any`: any triangle stands for the blocker.
+            let blocked = brute_force_any_hit(self.triangles, &cut, ray, t_max);
+            Hit {
+                prim: if blocked { 0 } else { INVALID },
+                ..Hit::none(t_max)
+            }
+        } else {
+            brute_force_closest_hit(self.triangles, &cut, ray, t_max)
+        };
         #[cfg(all(feature = "traversal-bvh2", not(feature = "traversal-brute-force")))]
-        return bvh2_traverse::<PLAIN>(self.triangles, &cut, self.nodes, ray, t_max, true).is_hit();
+        return bvh2_traverse::<PLAIN>(self.triangles, &cut, self.nodes, ray, t_max, any);
         #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
-        return cwbvh_traverse::<PLAIN>(self.triangles, &cut, self.nodes, ray, t_max, true)
-            .is_hit();
+        return cwbvh_traverse::<PLAIN>(self.triangles, &cut, self.nodes, ray, t_max, any);
     }
 
     /// How many of `count` rays, made in turn by `next_ray`, meet nothing before `t_max`
@@ -189,19 +216,13 @@ impl<'a> SceneBuffers<'a> {
     /// Whether the light point (q, nq) is visible from the surface point (p, n): one
     /// shadow ray between the offset end points.
     pub fn visible<const PLAIN: bool>(&self, p: Vec3, n: Vec3, q: Vec3, nq: Vec3) -> bool {
-        // Off the surface on the side the light is on (it can be below: transmission).
-        let n = if (q - p).dot(n) >= 0.0 { n } else { -n };
-        let origin = offset_ray_origin(p, n);
-        let target = offset_ray_origin(q, nq);
-        let d = target - origin;
-        let dist = d.length();
-        !self.any_hit::<PLAIN>(&Ray::new(origin, d / dist), dist * SHADOW_RAY_END)
+        let (ray, t_max) = shadow_ray(p, n, q, nq);
+        !self.any_hit::<PLAIN>(&ray, t_max)
     }
 
     /// Whether surface point p (normal n) sees outside the scene in direction `dir`.
     pub fn visible_towards<const PLAIN: bool>(&self, p: Vec3, n: Vec3, dir: Vec3) -> bool {
-        let n = if dir.dot(n) >= 0.0 { n } else { -n };
-        !self.any_hit::<PLAIN>(&Ray::new(offset_ray_origin(p, n), dir), f32::INFINITY)
+        !self.any_hit::<PLAIN>(&shadow_ray_towards(p, n, dir), f32::INFINITY)
     }
 
     pub fn material_of(&self, prim: u32) -> Material {

@@ -10,7 +10,7 @@
 //! Surfaces are two-sided with the BSDFs of `bsdf.rs`, lights one-sided, the sky a
 //! constant radiance.
 use crate::bsdf::{Bsdf, BSDF_DIFFUSE};
-use crate::bvh::{surface_hit, SceneBuffers, SurfaceHit};
+use crate::bvh::{shadow_ray, surface_hit, SceneBuffers, SurfaceHit};
 use crate::env::{escaped_radiance, infinite_pdf, sample_infinite, unsampled_radiance};
 use crate::glam::Vec3;
 use crate::integrators::ris::{self, ShadingPoint};
@@ -126,6 +126,29 @@ fn bsdf_toward(s: &SurfaceHit, bsdf: &Bsdf, wo: Vec3, dir: Vec3) -> (Vec3, f32) 
     }
 }
 
+/// A light sample's shadow test still to be traced: what the sample adds if `ray` meets
+/// nothing before `t_max`. `trace` is false where no ray is needed (the sample adds
+/// nothing whatever it meets).
+#[derive(Copy, Clone)]
+pub struct ShadowTest {
+    pub ray: Ray,
+    pub t_max: f32,
+    pub radiance: Vec3,
+    pub trace: bool,
+}
+
+impl ShadowTest {
+    const NONE: Self = Self {
+        ray: Ray {
+            origin: Vec3::ZERO,
+            dir: Vec3::ZERO,
+        },
+        t_max: 0.0,
+        radiance: Vec3::ZERO,
+        trace: false,
+    };
+}
+
 /// Direct light at surface `s` (viewed from `wo`) by next-event estimation: one light
 /// sample — a point on an emissive triangle, or (with the probabilities in `params`) a
 /// direction of the environment map or of the sun — and one shadow ray.
@@ -141,6 +164,27 @@ pub fn direct_nee<const PLAIN: bool>(
     rng: &mut Rng,
     rays: &mut u32,
 ) -> Vec3 {
+    let test = nee_sample::<PLAIN>(scene, params, s, bsdf, wo, mis, rng);
+    if !test.trace {
+        return Vec3::ZERO;
+    }
+    *rays += 1;
+    if scene.any_hit::<PLAIN>(&test.ray, test.t_max) {
+        return Vec3::ZERO;
+    }
+    test.radiance
+}
+
+/// `direct_nee`'s light sample and its shadow test, untraced.
+pub fn nee_sample<const PLAIN: bool>(
+    scene: &SceneBuffers,
+    params: &FrameParams,
+    s: &SurfaceHit,
+    bsdf: &Bsdf,
+    wo: Vec3,
+    mis: bool,
+    rng: &mut Rng,
+) -> ShadowTest {
     // The map and the sun are one light here (their mixture); a number for the choice only
     // when there is one to make: scenes without them keep their random streams.
     let p_infinite = infinite_probability::<PLAIN>(params);
@@ -153,22 +197,23 @@ pub fn direct_nee<const PLAIN: bool>(
         let (dir, light_pdf) =
             sample_infinite(scene, params, u_choice, rng.next_f32(), rng.next_f32());
         if light_pdf <= 0.0 || !s.leaves(dir) {
-            return Vec3::ZERO;
+            return ShadowTest::NONE;
         }
         let (f, bsdf_pdf) = bsdf_toward(s, bsdf, wo, dir);
         if f == Vec3::ZERO {
-            return Vec3::ZERO;
-        }
-        *rays += 1;
-        if scene.any_hit::<PLAIN>(&Ray::new(s.origin_towards(dir), dir), f32::INFINITY) {
-            return Vec3::ZERO;
+            return ShadowTest::NONE;
         }
         let weight = if mis {
             power_heuristic(light_pdf, bsdf_pdf)
         } else {
             1.0
         };
-        return f * escaped_radiance(scene, params, dir) * (weight / light_pdf);
+        return ShadowTest {
+            ray: Ray::new(s.origin_towards(dir), dir),
+            t_max: f32::INFINITY,
+            radiance: f * escaped_radiance(scene, params, dir) * (weight / light_pdf),
+            trace: true,
+        };
     }
     let ls = sample_light(scene, params.light_sampling, rng);
     let to_light = ls.p - s.p;
@@ -176,15 +221,11 @@ pub fn direct_nee<const PLAIN: bool>(
     let dir = to_light / crate::math::sqrt(dist2);
     let cos_light = -ls.n.dot(dir);
     if cos_light <= 0.0 || dist2 == 0.0 || !s.leaves(dir) {
-        return Vec3::ZERO;
+        return ShadowTest::NONE;
     }
     let (f, bsdf_pdf) = bsdf_toward(s, bsdf, wo, dir);
     if f == Vec3::ZERO {
-        return Vec3::ZERO;
-    }
-    *rays += 1;
-    if !scene.visible::<PLAIN>(s.p, s.n, ls.p, ls.n) {
-        return Vec3::ZERO;
+        return ShadowTest::NONE;
     }
     let pdf_area = ls.pdf_area * (1.0 - p_infinite);
     let mut weight = 1.0;
@@ -192,29 +233,60 @@ pub fn direct_nee<const PLAIN: bool>(
         let light_pdf = pdf_area * dist2 / cos_light;
         weight = power_heuristic(light_pdf, bsdf_pdf);
     }
-    f * ls.emission * (cos_light / dist2 / pdf_area * weight)
+    let (ray, t_max) = shadow_ray(s.p, s.n, ls.p, ls.n);
+    ShadowTest {
+        ray,
+        t_max,
+        radiance: f * ls.emission * (cos_light / dist2 / pdf_area * weight),
+        trace: true,
+    }
 }
 
 /// Follow a path from `state` to its end; `rays` counts traced rays (segments and shadow
 /// rays). `ALL_DIFFUSE` is a promise of a plain scene: every material Lambertian and
 /// untextured, and no environment map or sun (a constant sky at most). The kernel then
 /// carries none of the other lobes', the texture lookup's or the map's and sun's sampling
-/// code, whose registers cost plain scenes 5–40% (measured on the H100).
-pub fn trace_path<const ALL_DIFFUSE: bool>(
+/// code, whose registers cost plain scenes 5–40% (measured on the H100). `STRATEGY` (`BSDF`,
+/// `NEE`, `MIS`, `RIS`) is a constant for the same reason: `pt`'s kernel carries no light
+/// sampling and no any-hit traversal.
+pub fn trace_path<const ALL_DIFFUSE: bool, const STRATEGY: u32>(
     scene: &SceneBuffers,
     params: &FrameParams,
     state: PathState,
     rng: &mut Rng,
-    strategy: u32,
     rays: &mut u32,
 ) -> Vec3 {
     let mut radiance = Vec3::ZERO;
     let mut st = state;
     let p_infinite = infinite_probability::<ALL_DIFFUSE>(params);
     let has_lights = !scene.lights.is_empty() || p_infinite > 0.0;
-    while st.depth <= params.max_depth {
-        let hit = scene.closest_hit::<ALL_DIFFUSE>(&st.ray, f32::INFINITY);
+    // A vertex's NEE shadow ray is traced by the next turn of the loop, before the path's
+    // next segment: one traversal call site for both kinds of ray, so the kernel holds one
+    // inlined traversal and its stack, and a warp's threads with a shadow ray and those
+    // without one (no light sample to test) run the same traversal loop together. The
+    // radiance is summed in the same order as tracing each where it arises would.
+    let mut shadow = ShadowTest::NONE;
+    let mut ended = false;
+    loop {
+        // (Never for `pt`: its kernel keeps the closest-hit traversal alone.)
+        let any = STRATEGY != BSDF && shadow.trace;
+        if !any && (ended || st.depth > params.max_depth) {
+            break;
+        }
+        let (ray, t_max) = if any {
+            (shadow.ray, shadow.t_max)
+        } else {
+            (st.ray, f32::INFINITY)
+        };
+        let hit = scene.trace::<ALL_DIFFUSE>(&ray, t_max, any);
         *rays += 1;
+        if any {
+            if !hit.is_hit() {
+                radiance += shadow.radiance;
+            }
+            shadow.trace = false;
+            continue;
+        }
         if !hit.is_hit() {
             if ALL_DIFFUSE {
                 radiance += st.throughput * vec3(params.sky); // a constant sky: never sampled
@@ -222,9 +294,9 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
             }
             // The map's and the sun's light, weighed against their sampling at the vertex
             // the ray left; a constant sky is never sampled and counts in full.
-            let weight = if st.depth == 1 || strategy == BSDF || st.delta || !st.env_sampled {
+            let weight = if st.depth == 1 || STRATEGY == BSDF || st.delta || !st.env_sampled {
                 1.0
-            } else if strategy == MIS {
+            } else if STRATEGY == MIS {
                 power_heuristic(st.bsdf_pdf, infinite_pdf(scene, params, st.ray.dir))
             } else {
                 0.0 // NEE sampled the map there already
@@ -239,9 +311,9 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
 
         // Emission reached by this segment.
         if s.front_face && material.is_emissive() {
-            let weight = if st.depth == 1 || strategy == BSDF || st.delta {
+            let weight = if st.depth == 1 || STRATEGY == BSDF || st.delta {
                 1.0
-            } else if strategy == MIS {
+            } else if STRATEGY == MIS {
                 let cos_light = -s.n.dot(st.ray.dir);
                 let light_pdf = light_pdf_area(scene, params.light_sampling, hit.prim)
                     * (1.0 - p_infinite)
@@ -271,40 +343,41 @@ pub fn trace_path<const ALL_DIFFUSE: bool>(
         };
         let wo = -st.ray.dir;
         // A delta BSDF has nothing for a light sample to find: its bounce finds the light.
-        let sample_lights = strategy != BSDF && has_lights && !bsdf.is_delta();
+        let sample_lights = STRATEGY != BSDF && has_lights && !bsdf.is_delta();
         // RIS at the first vertex (emissive triangles, the map and the sun), NEE elsewhere.
-        let ris_here = strategy == RIS && st.depth == 1;
+        let ris_here = STRATEGY == RIS && st.depth == 1;
         st.env_sampled = sample_lights && p_infinite > 0.0;
-        if sample_lights {
-            let direct = if ris_here {
-                ris::direct_ris::<ALL_DIFFUSE>(
-                    scene,
-                    params,
-                    &ShadingPoint::new(&s, wo, bsdf),
-                    rng,
-                    rays,
-                )
-            } else {
-                direct_nee::<ALL_DIFFUSE>(scene, params, &s, &bsdf, wo, strategy == MIS, rng, rays)
-            };
+        if sample_lights && ris_here {
+            let direct = ris::direct_ris::<ALL_DIFFUSE>(
+                scene,
+                params,
+                &ShadingPoint::new(&s, wo, bsdf),
+                rng,
+                rays,
+            );
             radiance += st.throughput * direct;
+        } else if sample_lights {
+            shadow = nee_sample::<ALL_DIFFUSE>(scene, params, &s, &bsdf, wo, STRATEGY == MIS, rng);
+            shadow.radiance *= st.throughput;
         }
         if !st.bounce(&s, &bsdf, params, rng) {
-            break;
+            if STRATEGY == BSDF || !shadow.trace {
+                break;
+            }
+            ended = true; // after its last shadow ray
         }
     }
     radiance
 }
 
-pub fn render_pixel<const ALL_DIFFUSE: bool>(
+pub fn render_pixel<const ALL_DIFFUSE: bool, const STRATEGY: u32>(
     scene: &SceneBuffers,
     params: &FrameParams,
     x: u32,
     y: u32,
-    strategy: u32,
 ) -> PixelResult {
     crate::integrators::accumulate_samples(params, x, y, |ray, rng, rays| {
-        trace_path::<ALL_DIFFUSE>(scene, params, PathState::camera(ray), rng, strategy, rays)
+        trace_path::<ALL_DIFFUSE, STRATEGY>(scene, params, PathState::camera(ray), rng, rays)
     })
 }
 
@@ -317,7 +390,7 @@ pub fn pt_pixel<const ALL_DIFFUSE: bool>(
     x: u32,
     y: u32,
 ) -> PixelResult {
-    render_pixel::<ALL_DIFFUSE>(scene, params, x, y, BSDF)
+    render_pixel::<ALL_DIFFUSE, BSDF>(scene, params, x, y)
 }
 pub fn nee_pixel<const ALL_DIFFUSE: bool>(
     scene: &SceneBuffers,
@@ -325,7 +398,7 @@ pub fn nee_pixel<const ALL_DIFFUSE: bool>(
     x: u32,
     y: u32,
 ) -> PixelResult {
-    render_pixel::<ALL_DIFFUSE>(scene, params, x, y, NEE)
+    render_pixel::<ALL_DIFFUSE, NEE>(scene, params, x, y)
 }
 pub fn mis_pixel<const ALL_DIFFUSE: bool>(
     scene: &SceneBuffers,
@@ -333,7 +406,7 @@ pub fn mis_pixel<const ALL_DIFFUSE: bool>(
     x: u32,
     y: u32,
 ) -> PixelResult {
-    render_pixel::<ALL_DIFFUSE>(scene, params, x, y, MIS)
+    render_pixel::<ALL_DIFFUSE, MIS>(scene, params, x, y)
 }
 pub fn ris_pixel<const ALL_DIFFUSE: bool>(
     scene: &SceneBuffers,
@@ -341,5 +414,5 @@ pub fn ris_pixel<const ALL_DIFFUSE: bool>(
     x: u32,
     y: u32,
 ) -> PixelResult {
-    render_pixel::<ALL_DIFFUSE>(scene, params, x, y, RIS)
+    render_pixel::<ALL_DIFFUSE, RIS>(scene, params, x, y)
 }

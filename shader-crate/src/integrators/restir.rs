@@ -630,7 +630,7 @@ fn shaded_radiance<const PLAIN: bool>(
             // The reservoir sampled the map and the sun here: what the bounce finds of
             // them is NEE's to weigh (not counted again).
             state.env_sampled = infinite_probability::<PLAIN>(params) > 0.0;
-            radiance += trace_path::<PLAIN>(scene, params, state, &mut rng, NEE, rays);
+            radiance += trace_path::<PLAIN, NEE>(scene, params, state, &mut rng, rays);
         }
     }
     radiance
