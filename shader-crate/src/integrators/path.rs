@@ -361,10 +361,10 @@ pub fn trace_path<const ALL_DIFFUSE: bool, const STRATEGY: u32>(
             shadow.radiance *= st.throughput;
         }
         if !st.bounce(&s, &bsdf, params, rng) {
-            if STRATEGY == BSDF || !shadow.trace {
+            if STRATEGY == BSDF {
                 break;
             }
-            ended = true; // after its last shadow ray
+            ended = true; // after its last shadow ray, if it has one
         }
     }
     radiance
