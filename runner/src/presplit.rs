@@ -14,6 +14,9 @@
 //! is (a box across the scene's middle matters more than one across a fine cell). Karras &
 //! Aila's X = 2, Y = 1/3. Each split cuts at that coarsest plane, clipping the triangle
 //! to each side, and the remaining splits go to the sides in proportion to their excess.
+//!
+//! Measured, it does not pay on most scenes here (`accel::DEFAULT_SPLITS` is 0): fewer
+//! triangle tests per ray, but more node visits.
 use glam::Vec3;
 use kernels::types::Triangle;
 use rayon::prelude::*;
