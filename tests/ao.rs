@@ -5,6 +5,7 @@ use common::{grey, quad, z_score};
 use glam::Vec3;
 use kernels::integrators::ao::ambient_occlusion;
 use kernels::rng::Rng;
+use kernels::sampling::Strata;
 use kernels::types::Triangle;
 use runner::scene::Scene;
 
@@ -53,8 +54,18 @@ fn open_plane_is_fully_unoccluded() {
         Vec3::new(123.0, -45.0, 0.0),
         Vec3::new(-9000.0, 9000.0, 0.0),
     ] {
-        let v = ambient_occlusion::<false>(&scene, p, Vec3::Z, 10_000, f32::INFINITY, &mut rng);
-        assert_eq!(v, 1.0, "at {p}");
+        for strata in [Strata::NONE, Strata::new(10_000)] {
+            let v = ambient_occlusion::<false>(
+                &scene,
+                p,
+                Vec3::Z,
+                10_000,
+                strata,
+                f32::INFINITY,
+                &mut rng,
+            );
+            assert_eq!(v, 1.0, "at {p}");
+        }
     }
 }
 
@@ -87,13 +98,18 @@ fn corner_of_two_planes_matches_the_analytic_value() {
     {
         let mut rng = Rng::from_seed(100 + i as u32);
         let p = Vec3::new(d, 0.0, 0.0);
-        let got = ambient_occlusion::<false>(&scene, p, Vec3::Z, rays, distance, &mut rng) as f64;
         let want = corner_unoccluded(p.x, distance);
-        // Binomial standard error of a fraction over `rays` rays; floor it for p ∈ {0, 1}.
+        // Binomial standard error of a fraction over `rays` independent rays (the strata's
+        // is smaller); floor it for p ∈ {0, 1}.
         let se = (want * (1.0 - want) / rays as f64).sqrt().max(1e-6);
-        assert!(
-            z_score(got, want, se) < 5.0 || (got - want).abs() < 1e-5,
-            "d = {d}, D = {distance}: got {got}, expected {want} (se {se})"
-        );
+        for strata in [Strata::NONE, Strata::new(rays)] {
+            let got =
+                ambient_occlusion::<false>(&scene, p, Vec3::Z, rays, strata, distance, &mut rng)
+                    as f64;
+            assert!(
+                z_score(got, want, se) < 5.0 || (got - want).abs() < 1e-5,
+                "d = {d}, D = {distance}, {strata:?}: got {got}, expected {want} (se {se})"
+            );
+        }
     }
 }

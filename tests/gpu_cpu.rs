@@ -3,7 +3,7 @@
 use runner::backend::Backend;
 use runner::cpu::CpuBackend;
 use runner::gpu::{adapters, GpuBackend, GpuContext};
-use runner::integrator::{Integrator, LightSampling};
+use runner::integrator::{AoSampling, Integrator, LightSampling};
 use runner::light_shares::LightShares;
 use runner::options::{frame_params, KernelOptions, SceneOptions, UpAxis};
 use runner::output::Image;
@@ -51,6 +51,7 @@ fn kernel_args(integrator: Integrator, spp: u32) -> KernelOptions {
         light_shares: LightShares::Seen,
         ao_rays: 4,
         ao_distance: None,
+        ao_sampling: AoSampling::Stratified,
         seed: 7,
     }
 }

@@ -162,6 +162,26 @@ impl LightSampling {
     }
 }
 
+/// How a pixel's AO rays are spread over the hemisphere (`--ao-sampling`).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum AoSampling {
+    /// Jittered strata, one ray per cell, the cells in the same order in every pixel:
+    /// less noise, and neighbouring pixels' k-th rays run side by side on a GPU
+    Stratified,
+    /// Each ray drawn from the whole hemisphere (incoherent rays)
+    Independent,
+}
+
+impl AoSampling {
+    /// The kernels' `FrameParams::ao_sampling` value.
+    pub fn kernel_value(self) -> u32 {
+        match self {
+            AoSampling::Stratified => kernels::types::AO_STRATIFIED,
+            AoSampling::Independent => kernels::types::AO_INDEPENDENT,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -8,7 +8,7 @@ use kernels::types::FrameParams;
 
 use crate::bail;
 use crate::error::Result;
-use crate::integrator::{Integrator, LightSampling, RestirBias};
+use crate::integrator::{AoSampling, Integrator, LightSampling, RestirBias};
 use crate::light_shares::LightShares;
 use crate::scene::Scene;
 
@@ -180,6 +180,9 @@ pub struct KernelOptions {
     /// AO: occlusion ray length [default: 1/4 of the scene's bounding-box diagonal]
     #[arg(long, value_name = "D")]
     pub ao_distance: Option<f32>,
+    /// AO: how each pixel's occlusion rays are spread over the hemisphere
+    #[arg(long, value_enum, default_value_t = AoSampling::Stratified)]
+    pub ao_sampling: AoSampling,
     /// Random seed: the same command and seed give the same image
     #[arg(long, default_value_t = 0)]
     pub seed: u32,
@@ -376,6 +379,7 @@ pub fn frame_params(
         seed: kernel.seed,
         ao_rays: kernel.ao_rays,
         ao_distance,
+        ao_sampling: kernel.ao_sampling.kernel_value(),
         sky: sky.to_array(),
         env_texture,
         env_rotation: kernel.env_rotate.to_radians(),

@@ -174,13 +174,13 @@ impl<'a> SceneBuffers<'a> {
         return cwbvh_traverse::<PLAIN>(self.triangles, &cut, self.nodes, ray, t_max, any);
     }
 
-    /// How many of `count` rays, made in turn by `next_ray`, meet nothing before `t_max`
+    /// How many of `count` rays, made in turn by `next_ray` (ray index, stream), meet nothing before `t_max`
     /// (ambient occlusion). Over a CWBVH the rays run back to back in one traversal loop: a
     /// GPU thread whose ray ends starts its next one at once instead of idling until the
     /// slowest ray of its warp is done (the idea of Aila & Laine 2009's persistent threads,
     /// within a thread), so a warp takes about the longest *sum* of its threads' rays, not
     /// the sum of each ray's longest.
-    pub fn count_unoccluded<const PLAIN: bool, F: Fn(&mut Rng) -> Ray>(
+    pub fn count_unoccluded<const PLAIN: bool, F: Fn(u32, &mut Rng) -> Ray>(
         &self,
         count: u32,
         t_max: f32,
@@ -190,7 +190,7 @@ impl<'a> SceneBuffers<'a> {
         #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
         if !self.nodes.is_empty() && count > 0 {
             let cut = self.cutouts();
-            let mut walk = CwbvhWalk::new(&next_ray(rng), t_max);
+            let mut walk = CwbvhWalk::new(&next_ray(0, rng), t_max);
             let (mut open, mut done) = (0u32, 0u32);
             loop {
                 if walk.step::<PLAIN>(self.triangles, &cut, self.nodes, true) {
@@ -199,7 +199,7 @@ impl<'a> SceneBuffers<'a> {
                     if done == count {
                         break;
                     }
-                    walk.restart(&next_ray(rng), t_max);
+                    walk.restart(&next_ray(done, rng), t_max);
                 }
             }
             return open;
@@ -207,7 +207,7 @@ impl<'a> SceneBuffers<'a> {
         let mut open = 0u32;
         let mut i = 0;
         while i < count {
-            open += !self.any_hit::<PLAIN>(&next_ray(rng), t_max) as u32;
+            open += !self.any_hit::<PLAIN>(&next_ray(i, rng), t_max) as u32;
             i += 1;
         }
         open

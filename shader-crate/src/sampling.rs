@@ -1,5 +1,6 @@
 //! Sample warps: cosine-weighted hemisphere, uniform triangle, orthonormal basis; the
-//! octahedral encoding of directions (two numbers per direction, for reservoirs).
+//! octahedral encoding of directions (two numbers per direction, for reservoirs); the
+//! stratified pattern of a pixel's AO rays.
 use crate::glam::Vec3;
 use crate::math::{sin_cos, sqrt, PI};
 
@@ -48,6 +49,71 @@ pub fn cosine_hemisphere(u1: f32, u2: f32) -> Vec3 {
     let r = sqrt(u1);
     let (s, c) = sin_cos(2.0 * PI * u2);
     Vec3::new(r * c, r * s, sqrt((1.0 - u1).max(0.0)))
+}
+
+/// The largest f32 below 1: where a stratum's jittered point would round up to 1.
+const ONE_MINUS_EPSILON: f32 = 1.0 - 1.0 / 16_777_216.0;
+
+/// A pixel's AO rays as jittered strata of the unit square that `cosine_hemisphere` maps
+/// to directions: `rows` bands of u1 (the radius, so the elevation) × `columns` of u2 (the
+/// azimuth), one ray per cell, each placed in its cell by random numbers of its own; rays
+/// beyond rows · columns (a count that is no product of two near roots) are drawn from the
+/// whole square. The mean is unbiased as before and its variance lower (visibility is a
+/// step function: ~N^-1.5 instead of N^-1). The cells are visited in a serpentine order
+/// and every pixel visits them in the same order, so the k-th rays of neighbouring
+/// pixels, which a GPU warp traces side by side, leave in similar directions.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct Strata {
+    rows: u32,
+    columns: u32,
+}
+
+impl Strata {
+    /// No strata: every ray drawn from the whole square (independent samples).
+    pub const NONE: Strata = Strata {
+        rows: 0,
+        columns: 0,
+    };
+
+    /// The grid for `count` rays: rows = ⌊√count⌋, columns = ⌊count / rows⌋, so fewer than
+    /// `rows` rays are left over (64: 8 × 8; 32: 5 × 6 and 2 left).
+    pub fn new(count: u32) -> Self {
+        if count == 0 {
+            return Self::NONE;
+        }
+        // The float root is exact for perfect squares up to 2^24; the loops make it exact
+        // for any count.
+        let mut rows = (sqrt(count as f32) as u32).max(1);
+        while rows > 1 && rows * rows > count {
+            rows -= 1;
+        }
+        while (rows + 1) * (rows + 1) <= count {
+            rows += 1;
+        }
+        Self {
+            rows,
+            columns: count / rows,
+        }
+    }
+
+    /// The square's point for ray `k`: in its cell, at (j1, j2) ∈ [0, 1)² within it.
+    pub fn point(&self, k: u32, j1: f32, j2: f32) -> (f32, f32) {
+        if k >= self.rows * self.columns {
+            return (j1, j2);
+        }
+        let row = k / self.columns;
+        let step = k % self.columns;
+        // Serpentine: odd rows run backwards, so that cell k + 1 borders cell k.
+        let column = if row & 1 == 1 {
+            self.columns - 1 - step
+        } else {
+            step
+        };
+        (
+            ((row as f32 + j1) / self.rows as f32).min(ONE_MINUS_EPSILON),
+            ((column as f32 + j2) / self.columns as f32).min(ONE_MINUS_EPSILON),
+        )
+    }
 }
 
 /// Uniform barycentrics (b1, b2) on a triangle (the square-root warp).
@@ -120,5 +186,91 @@ mod tests {
             let (b1, b2) = uniform_triangle(rng.next_f32(), rng.next_f32());
             assert!(b1 >= 0.0 && b2 >= 0.0 && b1 + b2 <= 1.0);
         }
+    }
+
+    #[test]
+    fn strata_visit_every_cell_once_each_next_to_the_last() {
+        for count in 1..=300u32 {
+            let strata = Strata::new(count);
+            let cells = strata.rows * strata.columns;
+            assert!(
+                cells <= count && count - cells < strata.rows,
+                "{count}: {strata:?}"
+            );
+            let mut seen = std::vec![false; cells as usize];
+            let mut last: Option<(i64, i64)> = None;
+            for k in 0..cells {
+                let (u1, u2) = strata.point(k, 0.5, 0.5);
+                let cell = (
+                    (u1 * strata.rows as f32) as i64,
+                    (u2 * strata.columns as f32) as i64,
+                );
+                let index = (cell.0 * strata.columns as i64 + cell.1) as usize;
+                assert!(!seen[index], "{count}: cell {cell:?} twice");
+                seen[index] = true;
+                if let Some(l) = last {
+                    assert_eq!((cell.0 - l.0).abs() + (cell.1 - l.1).abs(), 1, "{count}");
+                }
+                last = Some(cell);
+            }
+            // Jitter at the cell's far edge stays inside the square.
+            let (u1, u2) = strata.point(cells.max(1) - 1, ONE_MINUS_EPSILON, ONE_MINUS_EPSILON);
+            assert!(u1 < 1.0 && u2 < 1.0);
+        }
+        assert_eq!(
+            Strata::new(64),
+            Strata {
+                rows: 8,
+                columns: 8
+            }
+        );
+        assert_eq!(Strata::new(0), Strata::NONE);
+        assert_eq!(Strata::NONE.point(3, 0.25, 0.75), (0.25, 0.75));
+    }
+
+    /// AO of a wall: the cosine-weighted share of directions with x > A, which is the
+    /// share of the unit disk beyond the chord x = A (Malley). Both patterns estimate it
+    /// without bias; the strata with a fraction of the variance.
+    #[test]
+    fn stratified_rays_estimate_without_bias_and_with_less_variance() {
+        const A: f64 = 0.3;
+        const RAYS: u32 = 64;
+        const TRIALS: usize = 4000;
+        let exact = ((A).acos() - A * (1.0 - A * A).sqrt()) / core::f64::consts::PI;
+        let mut rng = crate::rng::Rng::from_seed(17);
+        let mut estimate = |strata: Strata| {
+            let (mut sum, mut sum2) = (0.0f64, 0.0f64);
+            for _ in 0..TRIALS {
+                let mut open = 0u32;
+                for k in 0..RAYS {
+                    let (u1, u2) = strata.point(k, rng.next_f32(), rng.next_f32());
+                    open += (cosine_hemisphere(u1, u2).x as f64 > A) as u32;
+                }
+                let f = open as f64 / RAYS as f64;
+                sum += f;
+                sum2 += f * f;
+            }
+            let mean = sum / TRIALS as f64;
+            (mean, sum2 / TRIALS as f64 - mean * mean)
+        };
+        let (independent, var_independent) = estimate(Strata::NONE);
+        let (stratified, var_stratified) = estimate(Strata::new(RAYS));
+        // The independent variance is known: p (1 - p) / N.
+        let var_exact = exact * (1.0 - exact) / RAYS as f64;
+        assert!(
+            (var_independent / var_exact - 1.0).abs() < 0.1,
+            "{var_independent} {var_exact}"
+        );
+        for (mean, var) in [(independent, var_independent), (stratified, var_stratified)] {
+            let sigma = (var / TRIALS as f64).sqrt();
+            assert!(
+                (mean - exact).abs() < 5.0 * sigma,
+                "{mean} vs {exact} (σ {sigma})"
+            );
+        }
+        assert!(
+            var_stratified < var_independent / 4.0,
+            "{var_stratified} {var_independent}"
+        );
     }
 }

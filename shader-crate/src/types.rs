@@ -405,7 +405,9 @@ pub struct FrameParams {
     pub disocclusion_neighbours: u32,
     /// Unit direction towards the sun's centre.
     pub sun_direction: [f32; 3],
-    pub _pad_sun: u32,
+    /// AO: how a pixel's rays are spread, `AO_STRATIFIED` (the default) or
+    /// `AO_INDEPENDENT` (here, where `sun_direction`'s padding was).
+    pub ao_sampling: u32,
     /// Radiance of the sun's disk (zero: no sun).
     pub sun_radiance: [f32; 3],
     pub _pad_radiance: u32,
@@ -420,6 +422,12 @@ impl Default for FrameParams {
         }
     }
 }
+
+/// AO rays in jittered strata, the same cell order in every pixel (`sampling::Strata`).
+pub const AO_STRATIFIED: u32 = 0;
+/// AO rays drawn independently from the whole hemisphere (incoherent: for measuring
+/// traversal on rays that share nothing).
+pub const AO_INDEPENDENT: u32 = 1;
 
 pub const ENV_UP_Y: u32 = 0;
 pub const ENV_UP_Z: u32 = 1;

@@ -5,24 +5,25 @@ use crate::glam::Vec3;
 use crate::integrators::{accumulate_samples, PixelResult};
 use crate::intersect::Ray;
 use crate::rng::Rng;
-use crate::sampling::{cosine_hemisphere, local_to_world};
-use crate::types::FrameParams;
+use crate::sampling::{cosine_hemisphere, local_to_world, Strata};
+use crate::types::{FrameParams, AO_INDEPENDENT};
 
 /// Unoccluded fraction at `p` with normal `n`, from `rays` cosine-weighted rays of length
-/// `distance`. Cosine weighting makes this the cosine-weighted visibility integral
-/// (1/π) ∫ V(ω) cos θ dω estimated with equal weights.
+/// `distance`, spread over the hemisphere by `strata`. Cosine weighting makes this the
+/// cosine-weighted visibility integral (1/π) ∫ V(ω) cos θ dω estimated with equal weights.
 pub fn ambient_occlusion<const PLAIN: bool>(
     scene: &SceneBuffers,
     p: Vec3,
     n: Vec3,
     rays: u32,
+    strata: Strata,
     distance: f32,
     rng: &mut Rng,
 ) -> f32 {
     let origin = offset_ray_origin(p, n);
-    let open = scene.count_unoccluded::<PLAIN, _>(rays, distance, rng, |rng| {
-        let local = cosine_hemisphere(rng.next_f32(), rng.next_f32());
-        Ray::new(origin, local_to_world(local, n))
+    let open = scene.count_unoccluded::<PLAIN, _>(rays, distance, rng, |k, rng| {
+        let (u1, u2) = strata.point(k, rng.next_f32(), rng.next_f32());
+        Ray::new(origin, local_to_world(cosine_hemisphere(u1, u2), n))
     });
     open as f32 / rays.max(1) as f32
 }
@@ -43,11 +44,17 @@ pub fn ao_sample<const PLAIN: bool>(
     }
     let s = surface_hit(scene, &ray, &hit);
     *rays += params.ao_rays;
+    let strata = if params.ao_sampling == AO_INDEPENDENT {
+        Strata::NONE
+    } else {
+        Strata::new(params.ao_rays)
+    };
     Vec3::splat(ambient_occlusion::<PLAIN>(
         scene,
         s.p,
         s.n,
         params.ao_rays,
+        strata,
         params.ao_distance,
         rng,
     ))
