@@ -174,12 +174,12 @@ impl<'a> SceneBuffers<'a> {
         return cwbvh_traverse::<PLAIN>(self.triangles, &cut, self.nodes, ray, t_max, any);
     }
 
-    /// How many of `count` rays, made in turn by `next_ray` (ray index, stream), meet nothing before `t_max`
-    /// (ambient occlusion). Over a CWBVH the rays run back to back in one traversal loop: a
-    /// GPU thread whose ray ends starts its next one at once instead of idling until the
-    /// slowest ray of its warp is done (the idea of Aila & Laine 2009's persistent threads,
-    /// within a thread), so a warp takes about the longest *sum* of its threads' rays, not
-    /// the sum of each ray's longest.
+    /// How many of `count` rays, made in turn by `next_ray(k, stream)` for k = 0, 1, ...,
+    /// meet nothing before `t_max` (ambient occlusion). Over a CWBVH the rays run back to
+    /// back in one traversal loop: a GPU thread whose ray ends starts its next one at once
+    /// instead of idling until the slowest ray of its warp is done (the idea of Aila &
+    /// Laine 2009's persistent threads, within a thread), so a warp takes about the
+    /// longest *sum* of its threads' rays, not the sum of each ray's longest.
     pub fn count_unoccluded<const PLAIN: bool, F: Fn(u32, &mut Rng) -> Ray>(
         &self,
         count: u32,

@@ -236,7 +236,7 @@ mod tests {
         const A: f64 = 0.3;
         const RAYS: u32 = 64;
         const TRIALS: usize = 4000;
-        let exact = ((A).acos() - A * (1.0 - A * A).sqrt()) / core::f64::consts::PI;
+        let exact = (A.acos() - A * (1.0 - A * A).sqrt()) / core::f64::consts::PI;
         let mut rng = crate::rng::Rng::from_seed(17);
         let mut estimate = |strata: Strata| {
             let (mut sum, mut sum2) = (0.0f64, 0.0f64);
