@@ -81,7 +81,7 @@ fn check(name: &str, tris: &[Triangle], ray: &Ray, want: &Hit, got: &Hit, order:
     if got_prim != want.prim {
         // A tie: the ray passes through an edge or vertex shared by both triangles.
         let alt = brute_force_closest_hit(
-            &tris[got_prim as usize..=got_prim as usize],
+            bytemuck::cast_slice(&tris[got_prim as usize..=got_prim as usize]),
             &Cutouts::NONE,
             ray,
             f32::INFINITY,
@@ -117,6 +117,12 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
         bytemuck::cast_slice(&b2.nodes),
         bytemuck::cast_slice(&cw.nodes),
     );
+    // ... and the triangle buffers.
+    let (t2, tc, words): (&[UVec4], &[UVec4], &[UVec4]) = (
+        bytemuck::cast_slice(&t2),
+        bytemuck::cast_slice(&tc),
+        bytemuck::cast_slice(tris),
+    );
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
     for t in tris {
         let (a, b, c) = t.vertices();
@@ -127,14 +133,14 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
     let mut hits = 0;
     for i in 0..rays {
         let ray = make_ray(i, tris, lo, hi, &mut rng);
-        let want = brute_force_closest_hit(tris, &Cutouts::NONE, &ray, f32::INFINITY);
+        let want = brute_force_closest_hit(words, &Cutouts::NONE, &ray, f32::INFINITY);
         hits += want.is_hit() as u32;
         check(
             "bvh2",
             tris,
             &ray,
             &want,
-            &bvh2_traverse::<false>(&t2, &Cutouts::NONE, n2, &ray, f32::INFINITY, false),
+            &bvh2_traverse::<false>(t2, &Cutouts::NONE, n2, &ray, f32::INFINITY, false),
             &b2.order,
         );
         check(
@@ -142,7 +148,7 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
             tris,
             &ray,
             &want,
-            &cwbvh_traverse::<false>(&tc, &Cutouts::NONE, nc, &ray, f32::INFINITY, false),
+            &cwbvh_traverse::<false>(tc, &Cutouts::NONE, nc, &ray, f32::INFINITY, false),
             &cw.order,
         );
         // Any-hit with a limit around the closest hit: blocked iff something is nearer.
@@ -151,14 +157,14 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
         } else {
             1e30
         };
-        let blocked = brute_force_any_hit(tris, &Cutouts::NONE, &ray, limit);
+        let blocked = brute_force_any_hit(words, &Cutouts::NONE, &ray, limit);
         assert_eq!(
-            bvh2_traverse::<false>(&t2, &Cutouts::NONE, n2, &ray, limit, true).is_hit(),
+            bvh2_traverse::<false>(t2, &Cutouts::NONE, n2, &ray, limit, true).is_hit(),
             blocked,
             "bvh2 any-hit {ray:?} {limit}"
         );
         assert_eq!(
-            cwbvh_traverse::<false>(&tc, &Cutouts::NONE, nc, &ray, limit, true).is_hit(),
+            cwbvh_traverse::<false>(tc, &Cutouts::NONE, nc, &ray, limit, true).is_hit(),
             blocked,
             "cwbvh any-hit {ray:?} {limit}"
         );

@@ -18,7 +18,7 @@ const MIN_TEXTURED_POWER: f32 = 0.01;
 /// radiance averaged over the triangle, times its area (a Lambertian emitter radiates
 /// π · Le · area). Textured emission is averaged on a grid of points.
 pub fn power(scene: &SceneBuffers, triangle: u32) -> f32 {
-    let tri = &scene.triangles[triangle as usize];
+    let tri = &scene.triangle(triangle);
     let m = &scene.materials[tri.material as usize];
     let factor = luminance(Vec3::from(m.emission));
     if m.emission_texture == INVALID {
@@ -62,7 +62,7 @@ pub fn build_light_table(
         }
     }
     let view = SceneBuffers {
-        triangles,
+        triangles: bytemuck::cast_slice(triangles),
         materials,
         nodes: &[],
         lights: &[],

@@ -284,7 +284,7 @@ impl Scene {
     /// The buffers as the kernels see them.
     pub fn kernel(&self) -> kernels::bvh::SceneBuffers<'_> {
         kernels::bvh::SceneBuffers {
-            triangles: &self.triangles,
+            triangles: bytemuck::cast_slice(&self.triangles),
             materials: &self.materials,
             nodes: bytemuck::cast_slice(&self.nodes),
             lights: &self.lights,

@@ -9,9 +9,7 @@ use crate::glam::{UVec3, UVec4, Vec4};
 use crate::integrators::{ao, path, restir, PixelResult};
 use crate::present::{display_colour, fullscreen_triangle, PresentParams};
 use crate::reservoir::Reservoir;
-use crate::types::{
-    FrameParams, GBufferTexel, Light, Material, TextureInfo, Triangle, TriangleShading,
-};
+use crate::types::{FrameParams, GBufferTexel, Light, Material, TextureInfo, TriangleShading};
 use spirv_std::spirv;
 
 /// ReSTIR's set 1 (`bindings::RESTIR`) as one value: this frame's G-buffer (written by the
@@ -51,7 +49,7 @@ macro_rules! kernel {
         pub fn $name(
             #[spirv(global_invocation_id)] id: UVec3,
             #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] $params: &FrameParams,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] triangles: &[Triangle],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] triangles: &[UVec4],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] materials: &[Material],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[UVec4],
             #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] lights: &[Light],

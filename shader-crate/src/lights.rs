@@ -60,7 +60,7 @@ pub fn sample_light(scene: &SceneBuffers, mode: u32, rng: &mut Rng) -> LightSamp
 /// from `rng`).
 pub fn sample_on_light(scene: &SceneBuffers, mode: u32, index: u32, rng: &mut Rng) -> LightSample {
     let triangle = scene.lights[index as usize].triangle;
-    let tri = scene.triangles[triangle as usize];
+    let tri = scene.triangle(triangle);
     let (b1, b2) = uniform_triangle(rng.next_f32(), rng.next_f32());
     let cross = tri.cross();
     let area = 0.5 * cross.length();
@@ -77,7 +77,7 @@ pub fn sample_on_light(scene: &SceneBuffers, mode: u32, index: u32, rng: &mut Rn
 
 /// Area density with which `sample_light` produces a point on `triangle` (an emitter).
 pub fn light_pdf_area(scene: &SceneBuffers, mode: u32, triangle: u32) -> f32 {
-    let tri = scene.triangles[triangle as usize];
+    let tri = scene.triangle(triangle);
     selection_pdf(scene.lights, mode, tri.light) / tri.area()
 }
 

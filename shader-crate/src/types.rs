@@ -36,6 +36,36 @@ pub const ALPHA_TESTED: u32 = 1 << 31;
 pub const ALPHA_BLENDED: u32 = 1 << 30;
 
 impl Triangle {
+    /// 16-byte words a triangle takes in the triangle buffer, which the kernels read a word
+    /// at a time (like the nodes: one 128-bit load per word whatever the driver makes of a
+    /// struct's fields).
+    pub const WORDS: usize = 3;
+
+    /// Triangle `i` of a triangle buffer read as words.
+    pub fn read(words: &[UVec4], i: u32) -> Self {
+        let w = Self::WORDS * i as usize;
+        Self::from_words([words[w], words[w + 1], words[w + 2]])
+    }
+
+    /// The triangle from its three 16-byte words.
+    pub fn from_words(w: [UVec4; Self::WORDS]) -> Self {
+        let xyz = |w: UVec4| {
+            [
+                f32::from_bits(w.x),
+                f32::from_bits(w.y),
+                f32::from_bits(w.z),
+            ]
+        };
+        Self {
+            p0: xyz(w[0]),
+            material: w[0].w,
+            p1: xyz(w[1]),
+            light: w[1].w,
+            p2: xyz(w[2]),
+            shading: w[2].w,
+        }
+    }
+
     /// Index of the triangle's shading attributes (INVALID: none).
     pub fn shading_index(&self) -> u32 {
         if self.shading == INVALID {
@@ -650,6 +680,7 @@ pub mod cwbvh_meta {
 const _: () = {
     assert!(core::mem::size_of::<Bvh2Node>() == 16 * Bvh2Node::WORDS);
     assert!(core::mem::size_of::<CwBvhNode>() == 16 * CwBvhNode::WORDS);
+    assert!(core::mem::size_of::<Triangle>() == 16 * Triangle::WORDS);
 };
 
 #[cfg(test)]
@@ -672,5 +703,10 @@ mod tests {
         let w = words::<2>();
         let node = Bvh2Node::from_words(w[0], w[1]);
         assert_eq!(bytemuck::cast::<Bvh2Node, [UVec4; 2]>(node), w);
+        let w = words::<3>();
+        let tri = Triangle::from_words(w);
+        assert_eq!(bytemuck::cast::<Triangle, [UVec4; 3]>(tri), w);
+        let stored = [Triangle::default(), tri];
+        assert_eq!(Triangle::read(bytemuck::cast_slice(&stored), 1), tri);
     }
 }

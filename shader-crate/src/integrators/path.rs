@@ -328,7 +328,7 @@ pub fn trace_path<const ALL_DIFFUSE: bool, const STRATEGY: u32>(
             let le = if ALL_DIFFUSE || material.emission_texture == INVALID {
                 material.emission()
             } else {
-                scene.emission_at(&scene.triangles[hit.prim as usize], hit.b1, hit.b2)
+                scene.emission_at(&scene.triangle(hit.prim), hit.b1, hit.b2)
             };
             radiance += st.throughput * le * weight;
         }

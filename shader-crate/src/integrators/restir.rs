@@ -599,7 +599,7 @@ fn shaded_radiance<const PLAIN: bool>(
         if PLAIN || material.emission_texture == INVALID {
             material.emission()
         } else {
-            let tri = scene.triangles[g.prim as usize];
+            let tri = scene.triangle(g.prim);
             let (b1, b2) = tri.barycentrics(vec3(g.p));
             scene.emission_at(&tri, b1, b2)
         }

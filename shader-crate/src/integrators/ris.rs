@@ -20,7 +20,7 @@ use crate::types::FrameParams;
 
 /// A light point given by triangle and barycentrics: position, front normal, radiance.
 pub fn light_point(scene: &SceneBuffers, triangle: u32, b1: f32, b2: f32) -> (Vec3, Vec3, Vec3) {
-    let tri = scene.triangles[triangle as usize];
+    let tri = scene.triangle(triangle);
     (
         tri.point(b1, b2),
         tri.normal(),
