@@ -80,7 +80,9 @@ fn render_both(integrator: Integrator, w: u32, h: u32, spp: u32) -> (Image, Imag
 
 #[test]
 fn ao_gpu_matches_cpu_pixel_by_pixel() {
-    let (w, h, spp) = (64, 48, 4);
+    // Not a multiple of the 8×8 workgroup: the AO kernel's threads beyond the image
+    // trace their neighbours' rays.
+    let (w, h, spp) = (61, 45, 4);
     let (g, c) = render_both(Integrator::Ao, w, h, spp);
     // A pixel's AO is a count of open rays over spp · ao_rays = 16. The two sides compute
     // the same rays, but float rounding (FMA contraction on the GPU) can flip a ray that
@@ -273,4 +275,87 @@ fn textures_and_vertex_normals_gpu_match_cpu() {
             c.mean()
         );
     }
+}
+
+/// Workgroup memory for `ao_workgroup_pool_matches_per_pixel`: words shared by real
+/// threads, a barrier they all wait at.
+struct SharedWords<'a> {
+    words: &'a [std::sync::atomic::AtomicU32],
+    barrier: &'a std::sync::Barrier,
+}
+
+impl kernels::integrators::ao::GroupMemory for SharedWords<'_> {
+    fn load(&self, word: usize) -> u32 {
+        self.words[word].load(std::sync::atomic::Ordering::SeqCst)
+    }
+
+    fn store(&mut self, word: usize, value: u32) {
+        self.words[word].store(value, std::sync::atomic::Ordering::SeqCst);
+    }
+
+    fn fetch_add(&mut self, word: usize, value: u32) -> u32 {
+        self.words[word].fetch_add(value, std::sync::atomic::Ordering::SeqCst)
+    }
+
+    fn barrier(&mut self) {
+        self.barrier.wait();
+    }
+}
+
+#[test]
+fn ao_workgroup_pool_matches_per_pixel() {
+    // The GPU's AO kernel: 64 threads share their pixels' rays. Run it with 64 threads
+    // on the CPU over a tile that sticks out of the image (threads without a pixel) and
+    // over one inside it, and hold every pixel to the per-pixel function's result: the
+    // same rays are traced whoever traces them, so the sums must be identical.
+    use kernels::integrators::ao::{render_group_pixel, render_pixel, GROUP_THREADS, GROUP_WORDS};
+    let (w, h) = (13, 11);
+    let sa = scene_args(w, h);
+    let mut ka = kernel_args(Integrator::Ao, 3);
+    ka.ao_rays = 5;
+    let mut scene = load_scene(&sa).unwrap();
+    let mut params = frame_params(&sa, &ka, &mut scene).unwrap();
+    params.samples = 3;
+    let buffers = scene.kernel();
+    let mut hits = 0;
+    for (tx, ty) in [(0u32, 0u32), (8, 8)] {
+        let words: Vec<_> = (0..GROUP_WORDS).map(|_| Default::default()).collect();
+        let barrier = std::sync::Barrier::new(GROUP_THREADS);
+        let results: Vec<_> = std::thread::scope(|s| {
+            let threads: Vec<_> = (0..GROUP_THREADS)
+                .map(|t| {
+                    let (words, barrier, buffers, params) = (&words, &barrier, &buffers, &params);
+                    s.spawn(move || {
+                        let (x, y) = (tx + t as u32 % 8, ty + t as u32 / 8);
+                        let inside = x < w && y < h;
+                        let mut memory = SharedWords { words, barrier };
+                        let r = render_group_pixel::<false, _>(
+                            buffers,
+                            params,
+                            &mut memory,
+                            t,
+                            x,
+                            y,
+                            inside,
+                        );
+                        (x, y, inside, r)
+                    })
+                })
+                .collect();
+            threads.into_iter().map(|t| t.join().unwrap()).collect()
+        });
+        for (x, y, inside, r) in results {
+            if !inside {
+                assert_eq!(r.rays, 0, "({x}, {y}) is outside the image");
+                continue;
+            }
+            let want = render_pixel::<false>(&buffers, &params, x, y);
+            assert_eq!((r.sum, r.rays), (want.sum, want.rays), "pixel ({x}, {y})");
+            hits += (want.rays > params.samples) as u32;
+        }
+    }
+    assert!(
+        hits > 10,
+        "only {hits} pixels with AO rays: the test tests little"
+    );
 }

@@ -5,7 +5,7 @@ use crate::bsdf::{Bsdf, BSDF_CONDUCTOR, BSDF_DIELECTRIC};
 use crate::glam::{UVec2, UVec4, Vec2, Vec3};
 use crate::intersect::{intersect_aabb, Hit, Ray, TriangleTester};
 use crate::math::vec3;
-use crate::rng::{pcg_hash, Rng};
+use crate::rng::pcg_hash;
 use crate::sampling::orthonormal_basis;
 use crate::texture::sample_bilinear;
 use crate::types::cwbvh_meta::{self, FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
@@ -15,6 +15,16 @@ use crate::types::{
     SHADING_NORMALS, SHADING_TANGENTS, SHADING_UVS,
 };
 use core::mem::MaybeUninit;
+
+/// Rays to trace for `SceneBuffers::trace_pool`, handed out one at a time by index.
+pub trait RayPool {
+    /// The index of the next ray to trace, `INVALID` when there are no more.
+    fn take(&mut self) -> u32;
+    /// Ray `index`: a pure function of the index, so that any thread may trace it.
+    fn ray(&self, index: u32) -> Ray;
+    /// Ray `index` met nothing before its end.
+    fn escaped(&mut self, index: u32);
+}
 
 /// The node type of the traversal compiled in.
 #[cfg(any(feature = "traversal-bvh2", feature = "traversal-brute-force"))]
@@ -175,43 +185,45 @@ impl<'a> SceneBuffers<'a> {
         return cwbvh_traverse::<PLAIN>(self.triangles, &cut, self.nodes, ray, t_max, any);
     }
 
-    /// How many of `count` rays, made in turn by `next_ray(k, stream)` for k = 0, 1, ...,
-    /// meet nothing before `t_max` (ambient occlusion). Over a CWBVH the rays run back to
-    /// back in one traversal loop: a GPU thread whose ray ends starts its next one at once
-    /// instead of idling until the slowest ray of its warp is done (the idea of Aila &
-    /// Laine 2009's persistent threads, within a thread), so a warp takes about the
-    /// longest *sum* of its threads' rays, not the sum of each ray's longest.
-    pub fn count_unoccluded<const PLAIN: bool, F: Fn(u32, &mut Rng) -> Ray>(
-        &self,
-        count: u32,
-        t_max: f32,
-        rng: &mut Rng,
-        next_ray: F,
-    ) -> u32 {
+    /// Trace every ray of `pool` to `t_max`, telling the pool which ones meet nothing
+    /// (ambient occlusion). Over a CWBVH the rays run back to back in one traversal loop:
+    /// a GPU thread whose ray ends starts its next one at once instead of idling until
+    /// the slowest ray of its warp is done (the idea of Aila & Laine 2009's persistent
+    /// threads), so a warp takes about the longest *sum* of its threads' rays, not the sum
+    /// of each ray's longest; and where the pool is shared by a workgroup, a thread takes
+    /// rays of other pixels once its own are spoken for, so the sums even out too.
+    pub fn trace_pool<const PLAIN: bool, P: RayPool>(&self, pool: &mut P, t_max: f32) {
         #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
-        if !self.nodes.is_empty() && count > 0 {
+        if !self.nodes.is_empty() {
             let cut = self.cutouts();
-            let mut walk = CwbvhWalk::new(&next_ray(0, rng), t_max);
-            let (mut open, mut done) = (0u32, 0u32);
+            let mut index = pool.take();
+            if index == INVALID {
+                return;
+            }
+            let mut walk = CwbvhWalk::new(&pool.ray(index), t_max);
             loop {
                 if walk.step::<PLAIN>(self.triangles, &cut, self.nodes, true) {
-                    open += !walk.hit.is_hit() as u32;
-                    done += 1;
-                    if done == count {
+                    if !walk.hit.is_hit() {
+                        pool.escaped(index);
+                    }
+                    index = pool.take();
+                    if index == INVALID {
                         break;
                     }
-                    walk.restart(&next_ray(done, rng), t_max);
+                    walk.restart(&pool.ray(index), t_max);
                 }
             }
-            return open;
+            return;
         }
-        let mut open = 0u32;
-        let mut i = 0;
-        while i < count {
-            open += !self.any_hit::<PLAIN>(&next_ray(i, rng), t_max) as u32;
-            i += 1;
+        loop {
+            let index = pool.take();
+            if index == INVALID {
+                break;
+            }
+            if !self.any_hit::<PLAIN>(&pool.ray(index), t_max) {
+                pool.escaped(index);
+            }
         }
-        open
     }
 
     /// Whether the light point (q, nq) is visible from the surface point (p, n): one
@@ -604,7 +616,7 @@ pub fn cwbvh_traverse<const PLAIN: bool>(
 }
 
 /// A CWBVH traversal in progress, advanced one node at a time by `step`, so that a caller
-/// with many rays can run them back to back in one loop (`SceneBuffers::count_unoccluded`).
+/// with many rays can run them back to back in one loop (`SceneBuffers::trace_pool`).
 struct CwbvhWalk {
     tester: TriangleTester,
     origin: Vec3,

@@ -10,6 +10,8 @@ use crate::integrators::{ao, path, restir, PixelResult};
 use crate::present::{display_colour, fullscreen_triangle, PresentParams};
 use crate::reservoir::Reservoir;
 use crate::types::{FrameParams, GBufferTexel, Light, Material, TextureInfo, TriangleShading};
+use spirv_std::arch::{atomic_i_add, workgroup_memory_barrier_with_group_sync};
+use spirv_std::memory::{Scope, Semantics};
 use spirv_std::spirv;
 
 /// ReSTIR's set 1 (`bindings::RESTIR`) as one value: this frame's G-buffer (written by the
@@ -30,10 +32,19 @@ struct RestirBuffers<'a> {
 /// binds ReSTIR's set 1, as a `RestirBuffers` named `$b`.
 macro_rules! kernel {
     (threads($wx:literal, $wy:literal), $name:ident, |$scene:ident, $params:ident, $x:ident, $y:ident, $i:ident, $rays:ident, $accum:ident| $body:block) => {
-        kernel!(@fn ($wx, $wy), $name, $scene, $params, $x, $y, $i, $rays, $accum, [], {}, $body);
+        kernel!(@fn ($wx, $wy), $name, $scene, $params, $x, $y, $i, $rays, $accum, inside, { if !inside { return; } }, [], {}, $body);
+    };
+    (threads($wx:literal, $wy:literal), $name:ident, |$scene:ident, $params:ident, $x:ident, $y:ident, $i:ident, $rays:ident, $accum:ident, group: $memory:ident, $thread:ident, $inside:ident| $body:block) => {
+        kernel!(@fn ($wx, $wy), $name, $scene, $params, $x, $y, $i, $rays, $accum, $inside, {}, [
+            #[spirv(workgroup)] shared: &mut [u32; ao::GROUP_WORDS],
+            #[spirv(local_invocation_index)] local: u32,
+        ], {
+            let $memory = shared;
+            let $thread = local as usize;
+        }, $body);
     };
     (threads($wx:literal, $wy:literal), $name:ident, |$scene:ident, $params:ident, $x:ident, $y:ident, $i:ident, $rays:ident, $accum:ident, restir: $restir:ident| $body:block) => {
-        kernel!(@fn ($wx, $wy), $name, $scene, $params, $x, $y, $i, $rays, $accum, [
+        kernel!(@fn ($wx, $wy), $name, $scene, $params, $x, $y, $i, $rays, $accum, inside, { if !inside { return; } }, [
             #[spirv(storage_buffer, descriptor_set = 1, binding = 0)] g_cur: &mut [GBufferTexel],
             #[spirv(storage_buffer, descriptor_set = 1, binding = 1)] g_prev: &[GBufferTexel],
             #[spirv(storage_buffer, descriptor_set = 1, binding = 2)] res_in: &[Reservoir],
@@ -43,7 +54,7 @@ macro_rules! kernel {
             let mut $restir = RestirBuffers { g_cur, g_prev, res_in, res_out, res_prev };
         }, $body);
     };
-    (@fn ($wx:literal, $wy:literal), $name:ident, $scene:ident, $params:ident, $x:ident, $y:ident, $i:ident, $rays:ident, $accum:ident, [$($set1:tt)*], {$($bind_set1:tt)*}, $body:block) => {
+    (@fn ($wx:literal, $wy:literal), $name:ident, $scene:ident, $params:ident, $x:ident, $y:ident, $i:ident, $rays:ident, $accum:ident, $inside:ident, {$($guard:tt)*}, [$($set1:tt)*], {$($bind_set1:tt)*}, $body:block) => {
         #[spirv(compute(threads($wx, $wy)))]
         #[allow(unused_variables, unused_mut)]
         pub fn $name(
@@ -61,9 +72,8 @@ macro_rules! kernel {
             #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] env_distribution: &[f32],
             $($set1)*
         ) {
-            if id.x >= $params.width || id.y >= $params.height {
-                return;
-            }
+            let $inside = id.x < $params.width && id.y < $params.height;
+            $($guard)*
             let $scene = SceneBuffers {
                 triangles, materials, nodes, lights, shading, textures, texels, env_distribution,
             };
@@ -72,7 +82,9 @@ macro_rules! kernel {
             let $i = (id.y * $params.width + id.x) as usize;
             let mut $rays = 0u32;
             $body
-            ray_counts[$i] = ray_counts[$i].wrapping_add($rays);
+            if $inside {
+                ray_counts[$i] = ray_counts[$i].wrapping_add($rays);
+            }
         }
     };
 }
@@ -95,13 +107,63 @@ macro_rules! image_kernel {
     };
 }
 
-image_kernel!(ao_main, ao::render_pixel::<false>);
+/// An AO workgroup's pool (`ao::GroupMemory`) in workgroup memory. (Implemented for the
+/// array itself: a struct holding the pointer would be a variable of pointer type, which
+/// SPIR-V's logical addressing forbids.)
+impl ao::GroupMemory for [u32; ao::GROUP_WORDS] {
+    fn load(&self, word: usize) -> u32 {
+        self[word]
+    }
+
+    fn store(&mut self, word: usize, value: u32) {
+        self[word] = value;
+    }
+
+    fn fetch_add(&mut self, word: usize, value: u32) -> u32 {
+        // Relaxed: what a thread reads of the others' words it reads after a barrier.
+        // SAFETY: a workgroup word, in bounds (indexed above).
+        unsafe {
+            atomic_i_add::<u32, { Scope::Workgroup as u32 }, { Semantics::NONE.bits() }>(
+                &mut self[word],
+                value,
+            )
+        }
+    }
+
+    fn barrier(&mut self) {
+        workgroup_memory_barrier_with_group_sync();
+    }
+}
+
+const _: () = assert!(ao::GROUP_THREADS == 8 * 8, "the AO kernels' workgroup");
+
+/// Declares an AO kernel: every thread of the 8×8 workgroup, inside the image or not,
+/// runs `ao::render_group_pixel`, as they share one pool of rays.
+macro_rules! ao_kernel {
+    ($name:ident, $plain:literal) => {
+        kernel!(
+            threads(8, 8),
+            $name,
+            |scene, params, x, y, i, rays, accum, group: memory, thread, inside| {
+                let r = ao::render_group_pixel::<$plain, _>(
+                    &scene, params, memory, thread, x, y, inside,
+                );
+                if inside {
+                    accum[i] += r.sum.extend(params.samples as f32);
+                    rays += r.rays;
+                }
+            }
+        );
+    };
+}
+
+ao_kernel!(ao_main, false);
 image_kernel!(pt_main, path::pt_pixel::<false>);
 image_kernel!(nee_main, path::nee_pixel::<false>);
 image_kernel!(mis_main, path::mis_pixel::<false>);
 image_kernel!(ris_main, path::ris_pixel::<false>);
 // For plain scenes: all Lambertian, untextured, no cut-outs (see `path::trace_path`).
-image_kernel!(ao_plain_main, ao::render_pixel::<true>);
+ao_kernel!(ao_plain_main, true);
 image_kernel!(pt_diffuse_main, path::pt_pixel::<true>);
 image_kernel!(nee_diffuse_main, path::nee_pixel::<true>);
 image_kernel!(mis_diffuse_main, path::mis_pixel::<true>);

@@ -1,12 +1,77 @@
 //! Ambient occlusion, the course's first integrator: the fraction of cosine-weighted
 //! directions around a visible point that escape within `ao_distance`.
-use crate::bvh::{offset_ray_origin, surface_hit, SceneBuffers};
+//!
+//! The CPU backend runs a pixel at a time (`render_pixel`). The GPU runs a workgroup at a
+//! time (`render_group_pixel`): its threads trace their camera rays, put the AO rays of
+//! every hit into one pool in workgroup memory, and all take rays from that pool until it
+//! is empty. A thread whose pixel saw the sky, or whose rays were short, then traces rays
+//! of its neighbours instead of idling while its warp finishes theirs. Each ray is a pure
+//! function of (pixel, sample, ray index), so both give the same pixels.
+use crate::bvh::{offset_ray_origin, surface_hit, RayPool, SceneBuffers};
 use crate::glam::Vec3;
-use crate::integrators::{accumulate_samples, PixelResult};
+use crate::integrators::{accumulate_samples, camera_sample, PixelResult};
 use crate::intersect::Ray;
 use crate::rng::Rng;
 use crate::sampling::{cosine_hemisphere, local_to_world, Strata};
-use crate::types::{FrameParams, AO_INDEPENDENT};
+use crate::types::{FrameParams, AO_INDEPENDENT, INVALID};
+
+/// The AO rays of one surface point: where they start, about which normal, and the key
+/// of their random streams. Ray k draws from a stream of its own (`Rng::keyed`), so any
+/// thread can make any point's ray k.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct AoRays {
+    pub origin: Vec3,
+    pub n: Vec3,
+    pub key: u32,
+}
+
+impl AoRays {
+    /// The rays of point `p` with normal `n`; their key is the next number of `rng`.
+    pub fn new(p: Vec3, n: Vec3, rng: &mut Rng) -> Self {
+        Self {
+            origin: offset_ray_origin(p, n),
+            n,
+            key: rng.next_u32(),
+        }
+    }
+
+    /// Ray `k`, in cell k of `strata` (see `Strata::point`).
+    pub fn ray(&self, k: u32, strata: Strata) -> Ray {
+        let mut rng = Rng::keyed(self.key, k);
+        let (u1, u2) = strata.point(k, rng.next_f32(), rng.next_f32());
+        Ray::new(
+            self.origin,
+            local_to_world(cosine_hemisphere(u1, u2), self.n),
+        )
+    }
+}
+
+/// One point's `count` rays as a pool, the escaped ones counted.
+struct PointPool {
+    rays: AoRays,
+    strata: Strata,
+    count: u32,
+    next: u32,
+    open: u32,
+}
+
+impl RayPool for PointPool {
+    fn take(&mut self) -> u32 {
+        if self.next == self.count {
+            return INVALID;
+        }
+        self.next += 1;
+        self.next - 1
+    }
+
+    fn ray(&self, index: u32) -> Ray {
+        self.rays.ray(index, self.strata)
+    }
+
+    fn escaped(&mut self, _index: u32) {
+        self.open += 1;
+    }
+}
 
 /// Unoccluded fraction at `p` with normal `n`, from `rays` cosine-weighted rays of length
 /// `distance`, spread over the hemisphere by `strata`. Cosine weighting makes this the
@@ -20,12 +85,34 @@ pub fn ambient_occlusion<const PLAIN: bool>(
     distance: f32,
     rng: &mut Rng,
 ) -> f32 {
-    let origin = offset_ray_origin(p, n);
-    let open = scene.count_unoccluded::<PLAIN, _>(rays, distance, rng, |k, rng| {
-        let (u1, u2) = strata.point(k, rng.next_f32(), rng.next_f32());
-        Ray::new(origin, local_to_world(cosine_hemisphere(u1, u2), n))
-    });
-    open as f32 / rays.max(1) as f32
+    let mut pool = PointPool {
+        rays: AoRays::new(p, n, rng),
+        strata,
+        count: rays,
+        next: 0,
+        open: 0,
+    };
+    scene.trace_pool::<PLAIN, _>(&mut pool, distance);
+    pool.open as f32 / rays.max(1) as f32
+}
+
+/// The strata of `params`' AO rays.
+fn strata(params: &FrameParams) -> Strata {
+    if params.ao_sampling == AO_INDEPENDENT {
+        Strata::NONE
+    } else {
+        Strata::new(params.ao_rays)
+    }
+}
+
+/// The visible point of a camera ray, or None where it leaves the scene.
+fn camera_hit<const PLAIN: bool>(scene: &SceneBuffers, ray: &Ray) -> Option<(Vec3, Vec3)> {
+    let hit = scene.closest_hit::<PLAIN>(ray, f32::INFINITY);
+    if !hit.is_hit() {
+        return None;
+    }
+    let s = surface_hit(scene, ray, &hit);
+    Some((s.p, s.n))
 }
 
 /// One AO sample for a camera ray: 0 where the ray leaves the scene (no surface, no
@@ -37,24 +124,17 @@ pub fn ao_sample<const PLAIN: bool>(
     rng: &mut Rng,
     rays: &mut u32,
 ) -> Vec3 {
-    let hit = scene.closest_hit::<PLAIN>(&ray, f32::INFINITY);
     *rays += 1;
-    if !hit.is_hit() {
+    let Some((p, n)) = camera_hit::<PLAIN>(scene, &ray) else {
         return Vec3::ZERO;
-    }
-    let s = surface_hit(scene, &ray, &hit);
-    *rays += params.ao_rays;
-    let strata = if params.ao_sampling == AO_INDEPENDENT {
-        Strata::NONE
-    } else {
-        Strata::new(params.ao_rays)
     };
+    *rays += params.ao_rays;
     Vec3::splat(ambient_occlusion::<PLAIN>(
         scene,
-        s.p,
-        s.n,
+        p,
+        n,
         params.ao_rays,
-        strata,
+        strata(params),
         params.ao_distance,
         rng,
     ))
@@ -70,4 +150,172 @@ pub fn render_pixel<const PLAIN: bool>(
     accumulate_samples(params, x, y, |ray, rng, rays| {
         ao_sample::<PLAIN>(scene, params, ray, rng, rays)
     })
+}
+
+/// Threads of an AO workgroup (the image kernels' 8×8).
+pub const GROUP_THREADS: usize = 64;
+/// The pool's layout in workgroup memory, in 32-bit words: the next ray's index, the
+/// number of points with rays, those points' threads in the order they came, each
+/// thread's count of escaped rays, and each thread's `AoRays`.
+const NEXT: usize = 0;
+const POINTS: usize = 1;
+const POINT_THREADS: usize = 2;
+const ESCAPED: usize = POINT_THREADS + GROUP_THREADS;
+const RAYS: usize = ESCAPED + GROUP_THREADS;
+const RAYS_WORDS: usize = 7;
+/// Words of workgroup memory an AO workgroup needs.
+pub const GROUP_WORDS: usize = RAYS + RAYS_WORDS * GROUP_THREADS;
+
+/// A workgroup's shared memory: loads and stores of words, an atomic add, and a barrier
+/// that every thread of the group must reach (workgroup memory on the GPU; in tests,
+/// plain words with the phases run in order).
+pub trait GroupMemory {
+    fn load(&self, word: usize) -> u32;
+    fn store(&mut self, word: usize, value: u32);
+    /// Add `value` to `word` atomically; the value before.
+    fn fetch_add(&mut self, word: usize, value: u32) -> u32;
+    /// Wait for every thread of the group, their writes visible to all.
+    fn barrier(&mut self);
+}
+
+/// The AO rays of a workgroup's points. Ray g is ray ⌊g / points⌋ of point g mod points:
+/// the threads tracing side by side take the same ray k of neighbouring points, which
+/// the strata's shared order sends in similar directions.
+struct GroupPool<'a, M: GroupMemory> {
+    memory: &'a mut M,
+    points: u32,
+    total: u32,
+    strata: Strata,
+}
+
+impl<M: GroupMemory> GroupPool<'_, M> {
+    /// The thread of the point of ray `index`.
+    fn thread_of(&self, index: u32) -> usize {
+        self.memory
+            .load(POINT_THREADS + (index % self.points) as usize) as usize
+    }
+}
+
+impl<M: GroupMemory> RayPool for GroupPool<'_, M> {
+    fn take(&mut self) -> u32 {
+        let index = self.memory.fetch_add(NEXT, 1);
+        if index >= self.total {
+            INVALID
+        } else {
+            index
+        }
+    }
+
+    fn ray(&self, index: u32) -> Ray {
+        let base = RAYS + RAYS_WORDS * self.thread_of(index);
+        let f = |i: usize| f32::from_bits(self.memory.load(base + i));
+        let rays = AoRays {
+            origin: Vec3::new(f(0), f(1), f(2)),
+            n: Vec3::new(f(3), f(4), f(5)),
+            key: self.memory.load(base + 6),
+        };
+        rays.ray(index / self.points, self.strata)
+    }
+
+    fn escaped(&mut self, index: u32) {
+        let thread = self.thread_of(index);
+        self.memory.fetch_add(ESCAPED + thread, 1);
+    }
+}
+
+/// Group phase 1, every thread `thread` after the group's memory was cleared (`clear`):
+/// trace the camera ray of its pixel's sample and put the AO rays of what it sees into
+/// the pool. Returns whether the ray hit something (the caller counts its rays).
+pub fn group_camera<const PLAIN: bool, M: GroupMemory>(
+    scene: &SceneBuffers,
+    memory: &mut M,
+    thread: usize,
+    ray: &Ray,
+    rng: &mut Rng,
+) -> bool {
+    let Some((p, n)) = camera_hit::<PLAIN>(scene, ray) else {
+        return false;
+    };
+    let rays = AoRays::new(p, n, rng);
+    let base = RAYS + RAYS_WORDS * thread;
+    memory.store(base, rays.origin.x.to_bits());
+    memory.store(base + 1, rays.origin.y.to_bits());
+    memory.store(base + 2, rays.origin.z.to_bits());
+    memory.store(base + 3, rays.n.x.to_bits());
+    memory.store(base + 4, rays.n.y.to_bits());
+    memory.store(base + 5, rays.n.z.to_bits());
+    memory.store(base + 6, rays.key);
+    let slot = memory.fetch_add(POINTS, 1) as usize;
+    memory.store(POINT_THREADS + slot, thread as u32);
+    true
+}
+
+/// Group phase 2, every thread (or, on one thread, the whole pool): trace rays from the
+/// pool until it is empty.
+pub fn group_trace<const PLAIN: bool, M: GroupMemory>(
+    scene: &SceneBuffers,
+    params: &FrameParams,
+    memory: &mut M,
+) {
+    let points = memory.load(POINTS);
+    let mut pool = GroupPool {
+        memory,
+        points,
+        total: points * params.ao_rays,
+        strata: strata(params),
+    };
+    scene.trace_pool::<PLAIN, _>(&mut pool, params.ao_distance);
+}
+
+/// Group phase 3, every thread: the unoccluded fraction of its point's rays; and the
+/// thread's words cleared for the next sample (thread 0 clears the group's).
+pub fn group_result<M: GroupMemory>(params: &FrameParams, memory: &mut M, thread: usize) -> f32 {
+    let open = memory.load(ESCAPED + thread);
+    clear(memory, thread);
+    open as f32 / params.ao_rays.max(1) as f32
+}
+
+/// Clear thread `thread`'s counter, and with thread 0 the pool's: before the first sample.
+pub fn clear<M: GroupMemory>(memory: &mut M, thread: usize) {
+    memory.store(ESCAPED + thread, 0);
+    if thread == 0 {
+        memory.store(NEXT, 0);
+        memory.store(POINTS, 0);
+    }
+}
+
+/// Pixel (x, y)'s samples, run by thread `thread` of a workgroup of `GROUP_THREADS` that
+/// all call this together (threads beyond the image with `inside` false: they trace no
+/// camera ray, but take rays from the pool). The same sums and ray counts as
+/// `render_pixel`.
+pub fn render_group_pixel<const PLAIN: bool, M: GroupMemory>(
+    scene: &SceneBuffers,
+    params: &FrameParams,
+    memory: &mut M,
+    thread: usize,
+    x: u32,
+    y: u32,
+    inside: bool,
+) -> PixelResult {
+    clear(memory, thread);
+    let mut result = PixelResult::default();
+    let mut s = 0;
+    while s < params.samples {
+        memory.barrier();
+        let mut hit = false;
+        if inside {
+            let (ray, mut rng) = camera_sample(params, x, y, s);
+            hit = group_camera::<PLAIN, M>(scene, memory, thread, &ray, &mut rng);
+            result.rays += 1 + if hit { params.ao_rays } else { 0 };
+        }
+        memory.barrier();
+        group_trace::<PLAIN, M>(scene, params, memory);
+        memory.barrier();
+        let open = group_result(params, memory, thread);
+        if hit {
+            result.sum += Vec3::splat(open);
+        }
+        s += 1;
+    }
+    result
 }

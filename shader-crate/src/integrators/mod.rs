@@ -19,6 +19,15 @@ pub struct PixelResult {
     pub rays: u32,
 }
 
+/// Sample `s` of pixel (x, y): its camera ray and the rest of its random stream (pixel,
+/// frame, sample_offset + s, seed), whose first two numbers jittered the ray.
+pub fn camera_sample(params: &FrameParams, x: u32, y: u32, s: u32) -> (Ray, Rng) {
+    let pixel = y * params.width + x;
+    let mut rng = Rng::new(pixel, params.frame, params.sample_offset + s, params.seed);
+    let ray = jittered_ray(&params.camera, params.width, params.height, x, y, &mut rng);
+    (ray, rng)
+}
+
 /// The sample loop shared by all integrators: sample `s` of pixel (x, y) draws the stream
 /// (pixel, frame, sample_offset + s, seed); its first two numbers jitter the position in
 /// the pixel, the rest belong to `radiance`, which also counts the rays it traces.
@@ -29,13 +38,11 @@ pub fn accumulate_samples<F: Fn(Ray, &mut Rng, &mut u32) -> Vec3>(
     y: u32,
     radiance: F,
 ) -> PixelResult {
-    let pixel = y * params.width + x;
     let mut sum = Vec3::ZERO;
     let mut rays = 0u32;
     let mut s = 0;
     while s < params.samples {
-        let mut rng = Rng::new(pixel, params.frame, params.sample_offset + s, params.seed);
-        let ray = jittered_ray(&params.camera, params.width, params.height, x, y, &mut rng);
+        let (ray, mut rng) = camera_sample(params, x, y, s);
         let l = radiance(ray, &mut rng, &mut rays);
         if l.is_finite() {
             sum += l;
