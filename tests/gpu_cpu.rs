@@ -304,8 +304,8 @@ impl kernels::integrators::ao::GroupMemory for SharedWords<'_> {
 
 #[test]
 fn ao_workgroup_pool_matches_per_pixel() {
-    // The GPU's AO kernel: 64 threads share their pixels' rays. Run it with 64 threads
-    // on the CPU over a tile that sticks out of the image (threads without a pixel) and
+    // The GPU's AO kernel: a workgroup's threads share their pixels' rays. Run it with as
+    // many threads on the CPU, in rows of 8 pixels, over a tile that sticks out of the image (threads without a pixel) and
     // over one inside it, and hold every pixel to the per-pixel function's result: the
     // same rays are traced whoever traces them, so the sums must be identical.
     use kernels::integrators::ao::{render_group_pixel, render_pixel, GROUP_THREADS, GROUP_WORDS};

@@ -135,14 +135,15 @@ impl ao::GroupMemory for [u32; ao::GROUP_WORDS] {
     }
 }
 
-const _: () = assert!(ao::GROUP_THREADS == 8 * 8, "the AO kernels' workgroup");
+const _: () = assert!(ao::GROUP_THREADS == 16 * 8, "the AO kernels' workgroup");
 
-/// Declares an AO kernel: every thread of the 8×8 workgroup, inside the image or not,
+/// Declares an AO kernel: every thread of the 16×8 workgroup (the host's
+/// `gpu::pipelines::AO_WORKGROUP`), inside the image or not,
 /// runs `ao::render_group_pixel`, as they share one pool of rays.
 macro_rules! ao_kernel {
     ($name:ident, $plain:literal) => {
         kernel!(
-            threads(8, 8),
+            threads(16, 8),
             $name,
             |scene, params, x, y, i, rays, accum, group: memory, thread, inside| {
                 let r = ao::render_group_pixel::<$plain, _>(

@@ -14,6 +14,11 @@ const SPIRV: &[u8] = include_bytes!(env!("kernels.spv"));
 /// Workgroup size of the integrators' image kernels (`kernel!(threads(8, 8), ..)` in
 /// entry.rs): two warps of 8×4 pixels.
 pub const IMAGE_WORKGROUP: (u32, u32) = (8, 8);
+/// Workgroup size of the AO kernels (`ao_kernel!` in entry.rs), whose threads share one
+/// pool of AO rays (`kernels::integrators::ao::render_group_pixel`).
+pub const AO_WORKGROUP: (u32, u32) = (16, 8);
+const _: () =
+    assert!((AO_WORKGROUP.0 * AO_WORKGROUP.1) as usize == kernels::integrators::ao::GROUP_THREADS);
 /// Workgroup size of ReSTIR's passes (`threads(16, 8)`): four warps of 16×2 pixels. On the
 /// H100, 1–3% faster than 8×8 for every ReSTIR scene measured, while NEE and pt on the 1M
 /// suite scenes were 2–4% slower at 16×8 (README, "Workgroup shape").
@@ -25,9 +30,13 @@ const _: () = {
     assert!(tile.0 == RESTIR_WORKGROUP.0 && tile.0 * tile.1 == 32);
 };
 
+/// The AO kernels' entry points (see `AO_WORKGROUP`).
+const AO_ENTRY_POINTS: [&str; 2] = ["entry::ao_main", "entry::ao_plain_main"];
+
 /// The workgroup size of a kernel's entry points.
 pub fn workgroup(kernel: Kernel) -> (u32, u32) {
     match kernel {
+        Kernel::Image { entry_point, .. } if AO_ENTRY_POINTS.contains(&entry_point) => AO_WORKGROUP,
         Kernel::Image { .. } => IMAGE_WORKGROUP,
         Kernel::Restir { .. } => RESTIR_WORKGROUP,
     }

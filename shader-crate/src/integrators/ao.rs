@@ -152,8 +152,8 @@ pub fn render_pixel<const PLAIN: bool>(
     })
 }
 
-/// Threads of an AO workgroup (the image kernels' 8×8).
-pub const GROUP_THREADS: usize = 64;
+/// Threads of an AO workgroup (`runner::gpu::pipelines::AO_WORKGROUP`).
+pub const GROUP_THREADS: usize = 128;
 /// The pool's layout in workgroup memory, in 32-bit words: the next ray's index, the
 /// number of points with rays, those points' threads in the order they came, each
 /// thread's count of escaped rays, and each thread's `AoRays`.
