@@ -527,7 +527,7 @@ struct NodeRay {
 /// child at a time and without a branch: every slot is tested, an empty one (meta 0)
 /// adding no bits, and a hit selects the child's bits. Branching on empty slots and on
 /// the slab test's outcome (as before) left the CPU two unpredictable branches per child:
-/// this made the CPU backend's AO 10–30% faster and the GPU's 1–2.4% (the 1M suite scenes;
+/// this made the CPU backend's AO 10–30% faster and the GPU's 1.5–2.4% (the 1M suite scenes;
 /// Cornell box AO 2% slower, its MIS the same). The four children's slab tests side by side in
 /// `Vec4`s with a branch-free mask (2c44636) made the CPU backend's AO 17–19% faster but
 /// the GPU's kernels 3–28% slower (H200, same device run: Cornell MIS 2.09 → 2.67 ms,

@@ -258,6 +258,8 @@ pub fn group_trace<const PLAIN: bool, M: GroupMemory>(
     memory: &mut M,
 ) {
     let points = memory.load(POINTS);
+    // At most GROUP_THREADS × 2^24 rays (the CLI caps --ao-rays at 2^24): with each
+    // thread's last, failed take, the counter stays below 2^32.
     let mut pool = GroupPool {
         memory,
         points,
