@@ -30,13 +30,19 @@ const _: () = {
     assert!(tile.0 == RESTIR_WORKGROUP.0 && tile.0 * tile.1 == 32);
 };
 
-/// The AO kernels' entry points (see `AO_WORKGROUP`).
-const AO_ENTRY_POINTS: [&str; 2] = ["entry::ao_main", "entry::ao_plain_main"];
+/// Whether `entry_point` is one of AO's kernels (see `AO_WORKGROUP`), as the integrator
+/// table names them.
+fn is_ao(entry_point: &str) -> bool {
+    Integrator::Ao
+        .kernels()
+        .into_iter()
+        .any(|k| matches!(k, Kernel::Image { entry_point: e, .. } if e == entry_point))
+}
 
 /// The workgroup size of a kernel's entry points.
 pub fn workgroup(kernel: Kernel) -> (u32, u32) {
     match kernel {
-        Kernel::Image { entry_point, .. } if AO_ENTRY_POINTS.contains(&entry_point) => AO_WORKGROUP,
+        Kernel::Image { entry_point, .. } if is_ao(entry_point) => AO_WORKGROUP,
         Kernel::Image { .. } => IMAGE_WORKGROUP,
         Kernel::Restir { .. } => RESTIR_WORKGROUP,
     }
@@ -156,5 +162,24 @@ impl Pipelines {
 
     pub fn get(&self, entry_point: &str) -> &wgpu::ComputePipeline {
         &self.made[entry_point]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ao_kernels_dispatch_in_their_workgroups_and_the_others_in_theirs() {
+        for integrator in Integrator::ALL {
+            for kernel in integrator.kernels() {
+                let want = match (integrator, kernel) {
+                    (Integrator::Ao, _) => AO_WORKGROUP,
+                    (_, Kernel::Image { .. }) => IMAGE_WORKGROUP,
+                    (_, Kernel::Restir { .. }) => RESTIR_WORKGROUP,
+                };
+                assert_eq!(workgroup(kernel), want, "{integrator:?}");
+            }
+        }
     }
 }
