@@ -10,7 +10,7 @@ use kernels::bvh::{
 };
 use kernels::intersect::{Hit, Ray};
 use kernels::rng::Rng;
-use kernels::types::{Material, Triangle};
+use kernels::types::{CwBvhNode, CwBvhPlanes, Material, Triangle};
 use runner::accel::{build_bvh2, build_cwbvh, reorder, BvhQuality};
 use runner::scene::default_scene_path;
 
@@ -112,11 +112,13 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
     let b2 = build_bvh2(tris, quality, splits, &|_| true);
     let cw = build_cwbvh(tris, quality, splits, &|_| true);
     let (t2, tc) = (reorder(tris, &b2.order), reorder(tris, &cw.order));
-    // The node buffers as the kernels read them (16-byte words).
+    // The node buffers as the kernels read them (16-byte words): the CWBVH both as the
+    // GPU reads it (obvhs's nodes) and as the CPU does (decoded planes).
     let (n2, nc): (&[UVec4], &[UVec4]) = (
         bytemuck::cast_slice(&b2.nodes),
         bytemuck::cast_slice(&cw.nodes),
     );
+    let decoded = runner::accel::host_nodes(&cw.nodes);
     // ... and the triangle buffers.
     let (t2, tc, words): (&[UVec4], &[UVec4], &[UVec4]) = (
         bytemuck::cast_slice(&t2),
@@ -143,13 +145,22 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
             &bvh2_traverse::<false>(t2, &Cutouts::NONE, n2, &ray, f32::INFINITY, false),
             &b2.order,
         );
-        check(
-            "cwbvh",
-            tris,
+        let on_bytes =
+            cwbvh_traverse::<false, CwBvhNode>(tc, &Cutouts::NONE, nc, &ray, f32::INFINITY, false);
+        check("cwbvh", tris, &ray, &want, &on_bytes, &cw.order);
+        // The decoded planes are the bytes' values exactly: the same walk, the same hit.
+        let on_planes = cwbvh_traverse::<false, CwBvhPlanes>(
+            tc,
+            &Cutouts::NONE,
+            &decoded,
             &ray,
-            &want,
-            &cwbvh_traverse::<false>(tc, &Cutouts::NONE, nc, &ray, f32::INFINITY, false),
-            &cw.order,
+            f32::INFINITY,
+            false,
+        );
+        assert_eq!(
+            (on_planes.prim, on_planes.t.to_bits()),
+            (on_bytes.prim, on_bytes.t.to_bits()),
+            "decoded planes {ray:?}"
         );
         // Any-hit with a limit around the closest hit: blocked iff something is nearer.
         let limit = if want.is_hit() {
@@ -164,9 +175,15 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
             "bvh2 any-hit {ray:?} {limit}"
         );
         assert_eq!(
-            cwbvh_traverse::<false>(tc, &Cutouts::NONE, nc, &ray, limit, true).is_hit(),
+            cwbvh_traverse::<false, CwBvhNode>(tc, &Cutouts::NONE, nc, &ray, limit, true).is_hit(),
             blocked,
             "cwbvh any-hit {ray:?} {limit}"
+        );
+        assert_eq!(
+            cwbvh_traverse::<false, CwBvhPlanes>(tc, &Cutouts::NONE, &decoded, &ray, limit, true)
+                .is_hit(),
+            blocked,
+            "cwbvh any-hit on decoded planes {ray:?} {limit}"
         );
     }
     // The probe must actually exercise hits, not only misses.

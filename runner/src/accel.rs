@@ -5,7 +5,7 @@
 use std::time::{Duration, Instant};
 
 use glam::Vec3A;
-use kernels::types::{Bvh2Node, CwBvhNode, Triangle};
+use kernels::types::{Bvh2Node, CwBvhNode, CwBvhPlanes, Triangle};
 use obvhs::aabb::Aabb;
 use obvhs::ploc::{PlocSearchDistance, SortPrecision};
 use obvhs::{Boundable, BvhBuildParams};
@@ -325,6 +325,20 @@ pub fn build(
     return build_bvh2(triangles, quality(), splits(), splittable);
     #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
     return build_cwbvh(triangles, quality(), splits(), splittable);
+}
+
+/// The BVH's nodes as the CPU's traversal reads them: a CWBVH's decoded
+/// (`kernels::bvh::TraversalNode`), other kinds as they are.
+pub fn host_nodes(nodes: &[kernels::bvh::BvhNode]) -> Vec<glam::UVec4> {
+    #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
+    return nodes
+        .iter()
+        .flat_map(|n| {
+            bytemuck::cast::<_, [glam::UVec4; CwBvhPlanes::WORDS]>(CwBvhPlanes::decoded(n))
+        })
+        .collect();
+    #[cfg(any(feature = "traversal-bvh2", feature = "traversal-brute-force"))]
+    return bytemuck::cast_slice(nodes).to_vec();
 }
 
 /// Depth of a tree rooted at node 0 whose interior nodes' children are the nodes

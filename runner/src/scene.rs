@@ -32,6 +32,8 @@ pub struct Scene {
     pub triangle_count: usize,
     /// The BVH of the traversal compiled into the kernels.
     pub nodes: Vec<BvhNode>,
+    /// `nodes` as the CPU's traversal reads them (`accel::host_nodes`), made on first use.
+    pub(crate) host_nodes: std::sync::OnceLock<Vec<glam::UVec4>>,
     pub bvh_build_time: std::time::Duration,
     /// Reading, checking and building it all (`load`); zero for scenes made in code.
     pub load_time: std::time::Duration,
@@ -270,6 +272,7 @@ impl Scene {
             triangles,
             triangle_count,
             nodes: bvh.nodes,
+            host_nodes: Default::default(),
             bvh_build_time: bvh.build_time,
             load_time: std::time::Duration::ZERO,
             materials,
@@ -286,7 +289,9 @@ impl Scene {
         kernels::bvh::SceneBuffers {
             triangles: bytemuck::cast_slice(&self.triangles),
             materials: &self.materials,
-            nodes: bytemuck::cast_slice(&self.nodes),
+            nodes: self
+                .host_nodes
+                .get_or_init(|| crate::accel::host_nodes(&self.nodes)),
             lights: &self.lights,
             shading: &self.attributes.shading,
             textures: &self.attributes.textures,

@@ -2,7 +2,7 @@
 //! BVH, or over a compressed 8-wide BVH (CWBVH). `SceneBuffers` uses the traversal picked by cargo
 //! feature; every variant answers the same question, and the tests hold them to it.
 use crate::bsdf::{Bsdf, BSDF_CONDUCTOR, BSDF_DIELECTRIC};
-use crate::glam::{UVec2, UVec4, Vec2, Vec3};
+use crate::glam::{UVec2, UVec4, Vec2, Vec3, Vec4};
 use crate::intersect::{intersect_aabb, Hit, Ray, TriangleTester};
 use crate::math::vec3;
 use crate::rng::pcg_hash;
@@ -10,9 +10,9 @@ use crate::sampling::orthonormal_basis;
 use crate::texture::sample_bilinear;
 use crate::types::cwbvh_meta::{self, FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
 use crate::types::{
-    Bvh2Node, CwBvhNode, GBufferTexel, Light, Material, TextureInfo, Triangle, TriangleShading,
-    INVALID, METAL_THRESHOLD, NORMAL_MAP_HEIGHT, SHADING_BITANGENT_FLIPPED, SHADING_COLOURS,
-    SHADING_NORMALS, SHADING_TANGENTS, SHADING_UVS,
+    Bvh2Node, CwBvhNode, CwBvhPlanes, GBufferTexel, Light, Material, TextureInfo, Triangle,
+    TriangleShading, INVALID, METAL_THRESHOLD, NORMAL_MAP_HEIGHT, SHADING_BITANGENT_FLIPPED,
+    SHADING_COLOURS, SHADING_NORMALS, SHADING_TANGENTS, SHADING_UVS,
 };
 use core::mem::MaybeUninit;
 
@@ -79,8 +79,9 @@ pub struct SceneBuffers<'a> {
     /// The triangles as 16-byte words (`Triangle::WORDS` each), read with `triangle`.
     pub triangles: &'a [UVec4],
     pub materials: &'a [Material],
-    /// The BVH's nodes as 16-byte words (`BvhNode`s back to back): read a word at a time,
-    /// every node load is 128-bit wide whatever the driver makes of a struct's fields.
+    /// The BVH's nodes as 16-byte words (the `BvhNode`s built, back to back; over a CWBVH
+    /// on the CPU, those nodes decoded to `TraversalNode`s): read a word at a time, every
+    /// node load is 128-bit wide whatever the driver makes of a struct's fields.
     pub nodes: &'a [UVec4],
     pub lights: &'a [Light],
     /// Vertex normals and texture coordinates, indexed by `Triangle::shading`.
@@ -182,7 +183,14 @@ impl<'a> SceneBuffers<'a> {
         #[cfg(all(feature = "traversal-bvh2", not(feature = "traversal-brute-force")))]
         return bvh2_traverse::<PLAIN>(self.triangles, &cut, self.nodes, ray, t_max, any);
         #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
-        return cwbvh_traverse::<PLAIN>(self.triangles, &cut, self.nodes, ray, t_max, any);
+        return cwbvh_traverse::<PLAIN, TraversalNode>(
+            self.triangles,
+            &cut,
+            self.nodes,
+            ray,
+            t_max,
+            any,
+        );
     }
 
     /// Trace every ray of `pool` to `t_max`, telling the pool which ones meet nothing
@@ -202,7 +210,7 @@ impl<'a> SceneBuffers<'a> {
             }
             let mut walk = CwbvhWalk::new(&pool.ray(index), t_max);
             loop {
-                if walk.step::<PLAIN>(self.triangles, &cut, self.nodes, true) {
+                if walk.step::<PLAIN, TraversalNode>(self.triangles, &cut, self.nodes, true) {
                     if !walk.hit.is_hit() {
                         pool.escaped(index);
                     }
@@ -503,9 +511,9 @@ fn safe_recip(d: Vec3) -> Vec3 {
     Vec3::new(r(d.x), r(d.y), r(d.z))
 }
 
-/// (near, far) plane words of one axis: where the ray runs towards -axis, the box's max
-/// plane is the one it enters by.
-fn near_far(min: u32, max: u32, negative: bool) -> (u32, u32) {
+/// (near, far) planes of one axis: where the ray runs towards -axis, the box's max plane is
+/// the one it enters by.
+fn near_far<T>(min: T, max: T, negative: bool) -> (T, T) {
     if negative {
         (max, min)
     } else {
@@ -513,7 +521,7 @@ fn near_far(min: u32, max: u32, negative: bool) -> (u32, u32) {
     }
 }
 
-/// Ray transformed into a CWBVH node's quantised grid: t = q · slope + offset per axis.
+/// Ray relative to a CWBVH node: t = plane · slope + offset per axis.
 struct NodeRay {
     slope: Vec3,
     offset: Vec3,
@@ -522,16 +530,67 @@ struct NodeRay {
     t_max: f32,
 }
 
-/// Hit bits (see [`cwbvh_node_hits`]) of the 4 children whose bytes are in one word of
-/// each of the node's child arrays (half 0: children 0–3, half 1: children 4–7). One
-/// child at a time and without a branch: every slot is tested, an empty one (meta 0)
-/// adding no bits, and a hit selects the child's bits. Branching on empty slots and on
-/// the slab test's outcome (as before) left the CPU two unpredictable branches per child:
-/// this made the CPU backend's AO 10–30% faster and the GPU's 1.5–2.4% (the 1M suite scenes;
-/// Cornell box AO 2% slower, its MIS the same). The four children's slab tests side by side in
-/// `Vec4`s with a branch-free mask (2c44636) made the CPU backend's AO 17–19% faster but
-/// the GPU's kernels 3–28% slower (H200, same device run: Cornell MIS 2.09 → 2.67 ms,
-/// many-lights NEE 0.95 → 1.15, city-1m AO 33.6 → 35.6), and the GPU comes first. The
+impl NodeRay {
+    /// The ray against child planes `p + scale · plane` (`scale` 1 for decoded planes).
+    #[inline(always)]
+    fn new(
+        p: [f32; 3],
+        scale: Vec3,
+        origin: Vec3,
+        inv_dir: Vec3,
+        oct_inv: u32,
+        t_max: f32,
+    ) -> Self {
+        Self {
+            slope: scale * inv_dir,
+            offset: (vec3(p) - origin) * inv_dir,
+            negative: [inv_dir.x < 0.0, inv_dir.y < 0.0, inv_dir.z < 0.0],
+            oct_inv,
+            t_max,
+        }
+    }
+}
+
+/// Hit bits (see [`WideNode::hits`]) of one child slot, from its meta byte and its near and
+/// far planes. Without a branch: every slot is tested, an empty one (meta 0) adding no
+/// bits, and a hit selects the child's bits. Branching on empty slots and on the slab
+/// test's outcome (as before 858c4e3) left the CPU two unpredictable branches per child:
+/// this made the CPU backend's AO 10–30% faster and the GPU's 1.5–2.4% (the 1M suite
+/// scenes; Cornell box AO 2% slower, its MIS the same). The four children's slab tests side
+/// by side in `Vec4`s with a branch-free mask (2c44636) made the CPU backend's AO 17–19%
+/// faster but the GPU's kernels 3–28% slower (H200, same device run: Cornell MIS 2.09 →
+/// 2.67 ms, many-lights NEE 0.95 → 1.15, city-1m AO 33.6 → 35.6), and the GPU comes first:
+/// the CPU, which reads decoded planes, tests four children at a time there instead
+/// ([`cwbvh_half_hits_decoded`]).
+#[inline(always)]
+fn cwbvh_child_hits(ray: &NodeRay, meta: u32, near: Vec3, far: Vec3) -> u32 {
+    let near = near * ray.slope + ray.offset;
+    let far = far * ray.slope + ray.offset;
+    let t_near = near.max_element().max(0.0);
+    let t_far = far.min_element().min(ray.t_max);
+    let bits = child_bits(ray, meta);
+    if t_near <= t_far {
+        bits
+    } else {
+        0
+    }
+}
+
+/// The hit-mask bits of a child slot with meta byte `meta`, when the ray hits its box.
+/// Interior child: index = 24 + slot, XOR the ray octant, which orders the children front
+/// to back when popped highest bit first. Leaf child: its triangles' bits from its first
+/// offset. An empty slot (meta 0) is a leaf of no triangles: no bits.
+#[inline(always)]
+fn child_bits(ray: &NodeRay, meta: u32) -> u32 {
+    if cwbvh_meta::is_interior(meta) {
+        1 << (cwbvh_meta::index(meta) ^ ray.oct_inv)
+    } else {
+        cwbvh_meta::triangle_bits(meta) << cwbvh_meta::index(meta)
+    }
+}
+
+/// Hit bits of the 4 children whose bytes are in one word of each of the node's child
+/// arrays (half 0: children 0–3, half 1: children 4–7), decoded a child at a time. The
 /// bytes stay int-to-float conversions: converting them by OR-ing into 2^23's mantissa and
 /// subtracting 2^23 (exact, no conversion instruction) made every kernel 8–14% slower on
 /// the H200 (AO city-1m 33.0 → 36.7 ms, Cornell MIS 2.08 → 2.36): the driver's conversion
@@ -544,62 +603,136 @@ fn cwbvh_half_hits(ray: &NodeRay, meta4: u32, x: (u32, u32), y: (u32, u32), z: (
     let mut mask = 0u32;
     let mut shift = 0u32;
     while shift < 32 {
-        let meta = (meta4 >> shift) & 0xff;
         let q = |w: u32| ((w >> shift) & 0xff) as f32;
-        let near = Vec3::new(q(nx), q(ny), q(nz)) * ray.slope + ray.offset;
-        let far = Vec3::new(q(fx), q(fy), q(fz)) * ray.slope + ray.offset;
-        let t_near = near.max_element().max(0.0);
-        let t_far = far.min_element().min(ray.t_max);
-        // Interior child: index = 24 + slot. XOR with the ray octant orders the children
-        // front to back when popped highest bit first. An empty slot (meta 0) is a leaf
-        // of no triangles: no bits.
-        let bits = if cwbvh_meta::is_interior(meta) {
-            1 << (cwbvh_meta::index(meta) ^ ray.oct_inv)
-        } else {
-            cwbvh_meta::triangle_bits(meta) << cwbvh_meta::index(meta)
-        };
-        mask |= if t_near <= t_far { bits } else { 0 };
+        let near = Vec3::new(q(nx), q(ny), q(nz));
+        let far = Vec3::new(q(fx), q(fy), q(fz));
+        mask |= cwbvh_child_hits(ray, (meta4 >> shift) & 0xff, near, far);
         shift += 8;
     }
     mask
 }
 
-/// Intersect the ray with the 8 quantised child boxes of a CWBVH node. Returns the hit
-/// mask in the paper's layout: high byte = interior children hit (bit 24 + traversal
-/// priority), low 24 bits = triangles of the leaf children hit. The near and far planes
-/// are picked once per node from the ray's direction signs, and the child bytes are
-/// decoded a word (4 children) at a time.
+/// [`cwbvh_half_hits`] over decoded planes (`x`, `y`, `z`: the 4 children's min and max),
+/// the four slab tests side by side in `Vec4`s (one SSE register each on the CPU, which is
+/// the only target that reads decoded planes) and the hit bits selected without a branch.
+/// Each lane runs the scalar test's operations on the same numbers, so the hits are the
+/// same to the bit.
 #[inline(always)]
-fn cwbvh_node_hits(node: &CwBvhNode, origin: Vec3, inv_dir: Vec3, oct_inv: u32, t_max: f32) -> u32 {
-    // Child box = p + scale · q: transform the ray into the node's quantised grid.
-    let ray = NodeRay {
-        slope: node.scale() * inv_dir,
-        offset: (vec3(node.p) - origin) * inv_dir,
-        negative: [inv_dir.x < 0.0, inv_dir.y < 0.0, inv_dir.z < 0.0],
-        oct_inv,
-        t_max,
-    };
-    let (m, n) = (node.child_min_x, node.child_max_x);
-    let (k, l) = (node.child_min_y, node.child_max_y);
-    let (i, j) = (node.child_min_z, node.child_max_z);
-    cwbvh_half_hits(
-        &ray,
-        node.child_meta[0],
-        (m[0], n[0]),
-        (k[0], l[0]),
-        (i[0], j[0]),
-    ) | cwbvh_half_hits(
-        &ray,
-        node.child_meta[1],
-        (m[1], n[1]),
-        (k[1], l[1]),
-        (i[1], j[1]),
-    )
+fn cwbvh_half_hits_decoded(
+    ray: &NodeRay,
+    meta4: u32,
+    x: (Vec4, Vec4),
+    y: (Vec4, Vec4),
+    z: (Vec4, Vec4),
+) -> u32 {
+    let (nx, fx) = near_far(x.0, x.1, ray.negative[0]);
+    let (ny, fy) = near_far(y.0, y.1, ray.negative[1]);
+    let (nz, fz) = near_far(z.0, z.1, ray.negative[2]);
+    let (s, o) = (ray.slope, ray.offset);
+    let t = |plane: Vec4, slope: f32, offset: f32| plane * Vec4::splat(slope) + Vec4::splat(offset);
+    let t_near = t(nx, s.x, o.x)
+        .max(t(ny, s.y, o.y))
+        .max(t(nz, s.z, o.z))
+        .max(Vec4::ZERO);
+    let t_far = t(fx, s.x, o.x)
+        .min(t(fy, s.y, o.y))
+        .min(t(fz, s.z, o.z))
+        .min(Vec4::splat(ray.t_max));
+    let hit = t_near.cmple(t_far).bitmask();
+    let mut mask = 0u32;
+    let mut k = 0u32;
+    while k < 4 {
+        mask |= child_bits(ray, (meta4 >> (8 * k)) & 0xff) & 0u32.wrapping_sub((hit >> k) & 1);
+        k += 1;
+    }
+    mask
 }
+
+/// A CWBVH node as a traversal reads it: obvhs's 80-byte node ([`CwBvhNode`]) or the same
+/// node with its planes decoded ([`CwBvhPlanes`]).
+pub trait WideNode {
+    /// Node `i` of a buffer of these nodes read as words.
+    fn read(nodes: &[UVec4], i: u32) -> Self;
+    /// The ray against the node's 8 child boxes. Returns the hit mask in the paper's
+    /// layout: high byte = interior children hit (bit 24 + traversal priority), low 24 bits
+    /// = triangles of the leaf children hit. The near and far planes are picked once per
+    /// node from the ray's direction signs.
+    fn hits(&self, origin: Vec3, inv_dir: Vec3, oct_inv: u32, t_max: f32) -> u32;
+    fn child_base(&self) -> u32;
+    fn primitive_base(&self) -> u32;
+    /// Bit k set when slot k holds an interior child.
+    fn imask(&self) -> u32;
+}
+
+impl WideNode for CwBvhNode {
+    #[inline(always)]
+    fn read(nodes: &[UVec4], i: u32) -> Self {
+        CwBvhNode::read(nodes, i)
+    }
+    #[inline(always)]
+    fn hits(&self, origin: Vec3, inv_dir: Vec3, oct_inv: u32, t_max: f32) -> u32 {
+        // Child box = p + scale · q: the ray into the node's quantised grid.
+        let ray = NodeRay::new(self.p, self.scale(), origin, inv_dir, oct_inv, t_max);
+        let (m, n) = (self.child_min_x, self.child_max_x);
+        let (k, l) = (self.child_min_y, self.child_max_y);
+        let (i, j) = (self.child_min_z, self.child_max_z);
+        let meta = self.child_meta;
+        cwbvh_half_hits(&ray, meta[0], (m[0], n[0]), (k[0], l[0]), (i[0], j[0]))
+            | cwbvh_half_hits(&ray, meta[1], (m[1], n[1]), (k[1], l[1]), (i[1], j[1]))
+    }
+    fn child_base(&self) -> u32 {
+        self.child_base_idx
+    }
+    fn primitive_base(&self) -> u32 {
+        self.primitive_base_idx
+    }
+    fn imask(&self) -> u32 {
+        CwBvhNode::imask(self)
+    }
+}
+
+impl WideNode for CwBvhPlanes {
+    #[inline(always)]
+    fn read(nodes: &[UVec4], i: u32) -> Self {
+        CwBvhPlanes::read(nodes, i)
+    }
+    #[inline(always)]
+    fn hits(&self, origin: Vec3, inv_dir: Vec3, oct_inv: u32, t_max: f32) -> u32 {
+        let ray = NodeRay::new(self.p, Vec3::ONE, origin, inv_dir, oct_inv, t_max);
+        let (m, n) = (self.child_min_x, self.child_max_x);
+        let (k, l) = (self.child_min_y, self.child_max_y);
+        let (i, j) = (self.child_min_z, self.child_max_z);
+        let meta = self.child_meta;
+        cwbvh_half_hits_decoded(&ray, meta[0], (m[0], n[0]), (k[0], l[0]), (i[0], j[0]))
+            | cwbvh_half_hits_decoded(&ray, meta[1], (m[1], n[1]), (k[1], l[1]), (i[1], j[1]))
+    }
+    fn child_base(&self) -> u32 {
+        self.child_base_idx
+    }
+    fn primitive_base(&self) -> u32 {
+        self.primitive_base_idx
+    }
+    fn imask(&self) -> u32 {
+        self.imask
+    }
+}
+
+/// The node layout the traversal reads on this target. The GPU reads obvhs's 80-byte
+/// nodes: with planes decoded to f32 (224 bytes) its kernels were 0–9% slower (H200, AO
+/// 1080p: rocks-1m, spheres-1m, city-1m the same, grass-1m 45.7 → 49.1 ms, shell-1m 100.3
+/// → 105.0; Cornell MIS 1.96 → 2.15, many-lights NEE 0.913 → 0.981), as it pays for the
+/// loads more than for the conversions. The CPU pays for the conversions: AO on the CPU
+/// backend 11–36% faster with decoded planes (rocks-1m, grass-1m; 2-core box). The host
+/// builds each backend's buffer (`runner::accel::host_nodes`); the traversal is the same
+/// code over either ([`WideNode`]), and both give the same t to the bit.
+#[cfg(target_arch = "spirv")]
+pub type TraversalNode = CwBvhNode;
+#[cfg(not(target_arch = "spirv"))]
+pub type TraversalNode = CwBvhPlanes;
 
 /// Stack traversal of obvhs's CWBVH (Ylitie, Karras, Laine 2017, Algorithm 1): a stack of
 /// node groups (child base index, hit bits) and one triangle group at a time.
-pub fn cwbvh_traverse<const PLAIN: bool>(
+pub fn cwbvh_traverse<const PLAIN: bool, N: WideNode>(
     triangles: &[UVec4],
     cutouts: &Cutouts,
     nodes: &[UVec4],
@@ -611,7 +744,7 @@ pub fn cwbvh_traverse<const PLAIN: bool>(
         return Hit::none(t_max);
     }
     let mut walk = CwbvhWalk::new(ray, t_max);
-    while !walk.step::<PLAIN>(triangles, cutouts, nodes, any) {}
+    while !walk.step::<PLAIN, N>(triangles, cutouts, nodes, any) {}
     walk.hit
 }
 
@@ -671,7 +804,7 @@ impl CwbvhWalk {
     /// test, into the traversal loops: as a call per node the CPU kept the walk's state
     /// in memory (AO on the CPU backend 10–15% slower).
     #[inline(always)]
-    fn step<const PLAIN: bool>(
+    fn step<const PLAIN: bool, N: WideNode>(
         &mut self,
         triangles: &[UVec4],
         cutouts: &Cutouts,
@@ -694,11 +827,11 @@ impl CwbvhWalk {
                 self.sp += 1;
             }
             count!(NODES);
-            let node = CwBvhNode::read(nodes, child);
-            let hits = cwbvh_node_hits(&node, self.origin, self.inv_dir, self.oct_inv, self.hit.t);
-            self.group_base = node.child_base_idx;
+            let node = N::read(nodes, child);
+            let hits = node.hits(self.origin, self.inv_dir, self.oct_inv, self.hit.t);
+            self.group_base = node.child_base();
             self.group_bits = (hits & INTERIOR_HITS) | node.imask();
-            tri_base = node.primitive_base_idx;
+            tri_base = node.primitive_base();
             tri_bits = hits & TRIANGLE_HITS;
         }
         while tri_bits != 0 {
