@@ -2,7 +2,7 @@
 //! octahedral encoding of directions (two numbers per direction, for reservoirs); the
 //! stratified pattern of a pixel's AO rays.
 use crate::glam::Vec3;
-use crate::math::{sin_cos, sqrt, PI};
+use crate::math::{sin_cos, sqrt, Divisor, PI};
 
 /// Tangent `t` and bitangent `b` such that (t, b, n) is right-handed and orthonormal
 /// (Duff et al. 2017, "Building an Orthonormal Basis, Revisited": no branch on |n.z|).
@@ -62,10 +62,12 @@ const ONE_MINUS_EPSILON: f32 = 1.0 - 1.0 / 16_777_216.0;
 /// step function: ~N^-1.5 instead of N^-1). The cells are visited in a serpentine order
 /// and every pixel visits them in the same order, so the k-th rays of neighbouring
 /// pixels, which a GPU warp traces side by side, leave in similar directions.
-#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+#[derive(Copy, Clone, Debug, PartialEq)]
 pub struct Strata {
     rows: u32,
     columns: u32,
+    /// Division by `columns`, for the cell of a ray.
+    by_columns: Divisor,
 }
 
 impl Strata {
@@ -73,6 +75,7 @@ impl Strata {
     pub const NONE: Strata = Strata {
         rows: 0,
         columns: 0,
+        by_columns: Divisor::ONE,
     };
 
     /// The grid for `count` rays: rows = ⌊√count⌋, columns = ⌊count / rows⌋, so fewer than
@@ -93,6 +96,7 @@ impl Strata {
         Self {
             rows,
             columns: count / rows,
+            by_columns: Divisor::new(count / rows),
         }
     }
 
@@ -101,8 +105,7 @@ impl Strata {
         if k >= self.rows * self.columns {
             return (j1, j2);
         }
-        let row = k / self.columns;
-        let step = k % self.columns;
+        let (row, step) = self.by_columns.div_rem(k);
         // Serpentine: odd rows run backwards, so that cell k + 1 borders cell k.
         let column = if row & 1 == 1 {
             self.columns - 1 - step
@@ -217,13 +220,8 @@ mod tests {
             let (u1, u2) = strata.point(cells.max(1) - 1, ONE_MINUS_EPSILON, ONE_MINUS_EPSILON);
             assert!(u1 < 1.0 && u2 < 1.0);
         }
-        assert_eq!(
-            Strata::new(64),
-            Strata {
-                rows: 8,
-                columns: 8
-            }
-        );
+        let s = Strata::new(64);
+        assert_eq!((s.rows, s.columns), (8, 8));
         assert_eq!(Strata::new(0), Strata::NONE);
         assert_eq!(Strata::NONE.point(3, 0.25, 0.75), (0.25, 0.75));
     }

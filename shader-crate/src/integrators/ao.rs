@@ -11,6 +11,7 @@ use crate::bvh::{offset_ray_origin, surface_hit, RayPool, SceneBuffers};
 use crate::glam::Vec3;
 use crate::integrators::{accumulate_samples, camera_sample, PixelResult};
 use crate::intersect::Ray;
+use crate::math::Divisor;
 use crate::rng::Rng;
 use crate::sampling::{cosine_hemisphere, local_to_world, Strata};
 use crate::types::{FrameParams, AO_INDEPENDENT, INVALID};
@@ -183,7 +184,7 @@ pub trait GroupMemory {
 /// the strata's shared order sends in similar directions.
 struct GroupPool<'a, M: GroupMemory> {
     memory: &'a mut M,
-    points: u32,
+    points: Divisor,
     total: u32,
     strata: Strata,
 }
@@ -192,7 +193,7 @@ impl<M: GroupMemory> GroupPool<'_, M> {
     /// The thread of the point of ray `index`.
     fn thread_of(&self, index: u32) -> usize {
         self.memory
-            .load(POINT_THREADS + (index % self.points) as usize) as usize
+            .load(POINT_THREADS + self.points.div_rem(index).1 as usize) as usize
     }
 }
 
@@ -207,14 +208,16 @@ impl<M: GroupMemory> RayPool for GroupPool<'_, M> {
     }
 
     fn ray(&self, index: u32) -> Ray {
-        let base = RAYS + RAYS_WORDS * self.thread_of(index);
+        let (k, slot) = self.points.div_rem(index);
+        let thread = self.memory.load(POINT_THREADS + slot as usize) as usize;
+        let base = RAYS + RAYS_WORDS * thread;
         let f = |i: usize| f32::from_bits(self.memory.load(base + i));
         let rays = AoRays {
             origin: Vec3::new(f(0), f(1), f(2)),
             n: Vec3::new(f(3), f(4), f(5)),
             key: self.memory.load(base + 6),
         };
-        rays.ray(index / self.points, self.strata)
+        rays.ray(k, self.strata)
     }
 
     fn escaped(&mut self, index: u32) {
@@ -262,7 +265,7 @@ pub fn group_trace<const PLAIN: bool, M: GroupMemory>(
     // thread's last, failed take, the counter stays below 2^32.
     let mut pool = GroupPool {
         memory,
-        points,
+        points: Divisor::new(points.max(1)),
         total: points * params.ao_rays,
         strata: strata(params),
     };
