@@ -120,22 +120,22 @@ mod tests {
         assert_eq!(super::mul_hi(u32::MAX, u32::MAX), u32::MAX - 1);
         assert_eq!(super::mul_hi(u32::MAX, 7), 6);
     }
-}
-
-#[cfg(test)]
-mod divisor_tests {
-    use super::*;
 
     #[test]
     fn divides_exactly_below_the_fast_bound_and_above() {
         for d in [1u32, 2, 3, 5, 7, 8, 9, 13, 64, 100, 127, 128, 1000, 4097] {
-            let div = Divisor::new(d);
+            let div = super::Divisor::new(d);
             let mut n = 0u32;
-            while n < FAST_DIVIDENDS {
+            while n < super::FAST_DIVIDENDS {
                 assert_eq!(div.div_rem(n), (n / d, n % d), "{n} / {d}");
                 n += 1 + n / 4096;
             }
-            for n in [FAST_DIVIDENDS - 1, FAST_DIVIDENDS, u32::MAX - 1, u32::MAX] {
+            for n in [
+                super::FAST_DIVIDENDS - 1,
+                super::FAST_DIVIDENDS,
+                u32::MAX - 1,
+                u32::MAX,
+            ] {
                 assert_eq!(div.div_rem(n), (n / d, n % d), "{n} / {d}");
             }
         }

@@ -190,10 +190,10 @@ struct GroupPool<'a, M: GroupMemory> {
 }
 
 impl<M: GroupMemory> GroupPool<'_, M> {
-    /// The thread of the point of ray `index`.
-    fn thread_of(&self, index: u32) -> usize {
-        self.memory
-            .load(POINT_THREADS + self.points.div_rem(index).1 as usize) as usize
+    /// Ray `index` as (which ray of its point, the thread of its point).
+    fn point_of(&self, index: u32) -> (u32, usize) {
+        let (k, slot) = self.points.div_rem(index);
+        (k, self.memory.load(POINT_THREADS + slot as usize) as usize)
     }
 }
 
@@ -208,8 +208,7 @@ impl<M: GroupMemory> RayPool for GroupPool<'_, M> {
     }
 
     fn ray(&self, index: u32) -> Ray {
-        let (k, slot) = self.points.div_rem(index);
-        let thread = self.memory.load(POINT_THREADS + slot as usize) as usize;
+        let (k, thread) = self.point_of(index);
         let base = RAYS + RAYS_WORDS * thread;
         let f = |i: usize| f32::from_bits(self.memory.load(base + i));
         let rays = AoRays {
@@ -221,7 +220,7 @@ impl<M: GroupMemory> RayPool for GroupPool<'_, M> {
     }
 
     fn escaped(&mut self, index: u32) {
-        let thread = self.thread_of(index);
+        let (_, thread) = self.point_of(index);
         self.memory.fetch_add(ESCAPED + thread, 1);
     }
 }
