@@ -68,6 +68,9 @@ pub struct Strata {
     columns: u32,
     /// Division by `columns`, for the cell of a ray.
     by_columns: Divisor,
+    /// 1/rows and 1/columns: a cell's extent.
+    row_size: f32,
+    column_size: f32,
 }
 
 impl Strata {
@@ -76,6 +79,8 @@ impl Strata {
         rows: 0,
         columns: 0,
         by_columns: Divisor::ONE,
+        row_size: 1.0,
+        column_size: 1.0,
     };
 
     /// The grid for `count` rays: rows = ⌊√count⌋, columns = ⌊count / rows⌋, so fewer than
@@ -93,10 +98,13 @@ impl Strata {
         while (rows + 1) * (rows + 1) <= count {
             rows += 1;
         }
+        let columns = count / rows;
         Self {
             rows,
-            columns: count / rows,
-            by_columns: Divisor::new(count / rows),
+            columns,
+            by_columns: Divisor::new(columns),
+            row_size: 1.0 / rows as f32,
+            column_size: 1.0 / columns as f32,
         }
     }
 
@@ -113,8 +121,8 @@ impl Strata {
             step
         };
         (
-            ((row as f32 + j1) / self.rows as f32).min(ONE_MINUS_EPSILON),
-            ((column as f32 + j2) / self.columns as f32).min(ONE_MINUS_EPSILON),
+            ((row as f32 + j1) * self.row_size).min(ONE_MINUS_EPSILON),
+            ((column as f32 + j2) * self.column_size).min(ONE_MINUS_EPSILON),
         )
     }
 }
