@@ -30,6 +30,8 @@ use kernels::math::luminance;
 use kernels::rng::Rng;
 use kernels::types::{FrameParams, INVALID};
 
+use crate::scene::Scene;
+
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 pub enum LightShares {
     /// The same share for each kind of light present
@@ -74,19 +76,22 @@ fn only(params: &FrameParams, kind: usize) -> FrameParams {
 /// Shares (triangles, map, sun) summing to 1, zero for kinds not present.
 pub fn shares(
     rule: LightShares,
-    scene: &SceneBuffers,
+    scene: &Scene,
     params: &FrameParams,
     scene_radius: f32,
 ) -> [f32; 3] {
-    let present = present(scene, params);
+    // Only the pilot traces rays: the rest gets no nodes, so that a run that needs no
+    // pilot never decodes the CPU's (`Scene::untraced`).
+    let buffers = scene.untraced();
+    let present = present(&buffers, params);
     let count = present.iter().filter(|p| **p).count();
     if count <= 1 {
         return present.map(|p| if p { 1.0 } else { 0.0 });
     }
     let weights = match rule {
         LightShares::Equal => [1.0; 3],
-        LightShares::Power => power(scene, params, scene_radius),
-        LightShares::Seen => seen(scene, params),
+        LightShares::Power => power(&buffers, params, scene_radius),
+        LightShares::Seen => seen(&scene.kernel(), params),
     };
     let count = count as f32;
     let total: f32 = (0..3).filter(|&k| present[k]).map(|k| weights[k]).sum();

@@ -403,7 +403,7 @@ pub fn frame_params(
         ..Default::default()
     };
     let [_, env_share, sun_share] =
-        crate::light_shares::shares(kernel.light_shares, &scene.kernel(), &params, 0.5 * extent);
+        crate::light_shares::shares(kernel.light_shares, scene, &params, 0.5 * extent);
     Ok(FrameParams {
         env_light_probability: env_share,
         sun_light_probability: sun_share,

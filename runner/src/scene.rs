@@ -286,12 +286,24 @@ impl Scene {
 
     /// The buffers as the kernels see them.
     pub fn kernel(&self) -> kernels::bvh::SceneBuffers<'_> {
+        self.buffers(
+            self.host_nodes
+                .get_or_init(|| crate::accel::host_nodes(&self.nodes)),
+        )
+    }
+
+    /// The buffers without the traversal's nodes, for host code that traces no ray: the
+    /// CPU's nodes are decoded on first use (`kernel`), which a GPU run then never pays
+    /// for (time, and 2.8× the nodes' memory). A ray traced in them meets nothing.
+    pub fn untraced(&self) -> kernels::bvh::SceneBuffers<'_> {
+        self.buffers(&[])
+    }
+
+    fn buffers<'a>(&'a self, nodes: &'a [glam::UVec4]) -> kernels::bvh::SceneBuffers<'a> {
         kernels::bvh::SceneBuffers {
             triangles: bytemuck::cast_slice(&self.triangles),
             materials: &self.materials,
-            nodes: self
-                .host_nodes
-                .get_or_init(|| crate::accel::host_nodes(&self.nodes)),
+            nodes,
             lights: &self.lights,
             shading: &self.attributes.shading,
             textures: &self.attributes.textures,
