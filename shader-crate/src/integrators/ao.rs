@@ -14,7 +14,7 @@ use crate::intersect::Ray;
 use crate::math::Divisor;
 use crate::rng::{keyed_pair, Rng};
 use crate::sampling::{cosine_hemisphere, orthonormal_basis, Strata};
-use crate::types::{FrameParams, AO_INDEPENDENT, INVALID};
+use crate::types::{decode_unit, encode_unit, FrameParams, AO_INDEPENDENT, INVALID};
 
 /// The AO rays of one surface point: where they start, the frame about its normal that
 /// their directions are drawn in, and the key of their random numbers. Ray k's numbers
@@ -23,7 +23,9 @@ use crate::types::{FrameParams, AO_INDEPENDENT, INVALID};
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct AoRays {
     pub origin: Vec3,
-    /// Tangent, bitangent and normal (`orthonormal_basis`).
+    /// The normal in one word (`encode_unit`), as the GPU's workgroup pool keeps it.
+    pub normal: u32,
+    /// Tangent, bitangent and normal (`orthonormal_basis`) of `normal`'s vector.
     pub frame: [Vec3; 3],
     pub key: u32,
 }
@@ -31,14 +33,17 @@ pub struct AoRays {
 impl AoRays {
     /// The rays of point `p` with normal `n`; their key is the next number of `rng`.
     pub fn new(p: Vec3, n: Vec3, rng: &mut Rng) -> Self {
-        Self::at(offset_ray_origin(p, n), n, rng.next_u32())
+        Self::at(offset_ray_origin(p, n), encode_unit(n), rng.next_u32())
     }
 
-    /// The rays from `origin` (already off the surface) about normal `n`, of key `key`.
-    pub fn at(origin: Vec3, n: Vec3, key: u32) -> Self {
+    /// The rays from `origin` (already off the surface) about the normal of word `normal`
+    /// (`encode_unit`), of key `key`.
+    pub fn at(origin: Vec3, normal: u32, key: u32) -> Self {
+        let n = decode_unit(normal);
         let (t, b) = orthonormal_basis(n);
         Self {
             origin,
+            normal,
             frame: [t, b, n],
             key,
         }
@@ -163,14 +168,17 @@ pub fn render_pixel<const PLAIN: bool>(
 /// Threads of an AO workgroup (`runner::gpu::pipelines::AO_WORKGROUP`).
 pub const GROUP_THREADS: usize = 128;
 /// The pool's layout in workgroup memory, in 32-bit words: the next ray's index, the
-/// number of points with rays, those points' threads in the order they came, each
-/// thread's count of escaped rays, and each thread's `AoRays`.
+/// number of points with rays, those points' threads in the order they came (a byte each),
+/// each thread's count of escaped rays, and each thread's `AoRays` (origin, normal word,
+/// key). Kept small: the workgroup's memory comes out of the SM's L1, which the walk's
+/// node reads live on (README, "Benchmark suite").
 const NEXT: usize = 0;
 const POINTS: usize = 1;
 const POINT_THREADS: usize = 2;
-const ESCAPED: usize = POINT_THREADS + GROUP_THREADS;
+const ESCAPED: usize = POINT_THREADS + GROUP_THREADS / 4;
 const RAYS: usize = ESCAPED + GROUP_THREADS;
-const RAYS_WORDS: usize = 7;
+const RAYS_WORDS: usize = 5;
+const _: () = assert!(GROUP_THREADS <= 256, "a point's thread must fit in a byte");
 /// Words of workgroup memory an AO workgroup needs.
 pub const GROUP_WORDS: usize = RAYS + RAYS_WORDS * GROUP_THREADS;
 
@@ -200,7 +208,8 @@ impl<M: GroupMemory> GroupPool<'_, M> {
     /// Ray `index` as (which ray of its point, the thread of its point).
     fn point_of(&self, index: u32) -> (u32, usize) {
         let (k, slot) = self.points.div_rem(index);
-        (k, self.memory.load(POINT_THREADS + slot as usize) as usize)
+        let word = self.memory.load(POINT_THREADS + (slot >> 2) as usize);
+        (k, ((word >> ((slot & 3) * 8)) & 0xff) as usize)
     }
 }
 
@@ -221,8 +230,8 @@ impl<M: GroupMemory> RayPool for GroupPool<'_, M> {
         // The point's frame is made again per ray rather than kept in workgroup memory:
         // six more words a point made AO 0.3–1% slower (H200; README, "Benchmark suite").
         let origin = Vec3::new(f(0), f(1), f(2));
-        let n = Vec3::new(f(3), f(4), f(5));
-        AoRays::at(origin, n, self.memory.load(base + 6)).ray(k, self.strata)
+        let (normal, key) = (self.memory.load(base + 3), self.memory.load(base + 4));
+        AoRays::at(origin, normal, key).ray(k, self.strata)
     }
 
     fn escaped(&mut self, index: u32) {
@@ -249,13 +258,11 @@ pub fn group_camera<const PLAIN: bool, M: GroupMemory>(
     memory.store(base, rays.origin.x.to_bits());
     memory.store(base + 1, rays.origin.y.to_bits());
     memory.store(base + 2, rays.origin.z.to_bits());
-    let n = rays.frame[2];
-    memory.store(base + 3, n.x.to_bits());
-    memory.store(base + 4, n.y.to_bits());
-    memory.store(base + 5, n.z.to_bits());
-    memory.store(base + 6, rays.key);
+    memory.store(base + 3, rays.normal);
+    memory.store(base + 4, rays.key);
+    // The thread into byte `slot` of the (cleared) list: adding to a zero byte sets it.
     let slot = memory.fetch_add(POINTS, 1) as usize;
-    memory.store(POINT_THREADS + slot, thread as u32);
+    memory.fetch_add(POINT_THREADS + slot / 4, (thread as u32) << (slot % 4 * 8));
     true
 }
 
@@ -286,9 +293,13 @@ pub fn group_result<M: GroupMemory>(params: &FrameParams, memory: &mut M, thread
     open as f32 / params.ao_rays.max(1) as f32
 }
 
-/// Clear thread `thread`'s counter, and with thread 0 the pool's: before the first sample.
+/// Clear thread `thread`'s counter, a word of the point list with the first quarter of the
+/// threads, and with thread 0 the pool's: before the first sample.
 pub fn clear<M: GroupMemory>(memory: &mut M, thread: usize) {
     memory.store(ESCAPED + thread, 0);
+    if thread < GROUP_THREADS / 4 {
+        memory.store(POINT_THREADS + thread, 0);
+    }
     if thread == 0 {
         memory.store(NEXT, 0);
         memory.store(POINTS, 0);
