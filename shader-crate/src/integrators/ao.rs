@@ -179,6 +179,10 @@ const ESCAPED: usize = POINT_THREADS + GROUP_THREADS / 4;
 const RAYS: usize = ESCAPED + GROUP_THREADS;
 const RAYS_WORDS: usize = 5;
 const _: () = assert!(GROUP_THREADS <= 256, "a point's thread must fit in a byte");
+/// Where point `slot`'s thread is kept in the point list: the word and the shift of its byte.
+fn point_thread_byte(slot: usize) -> (usize, u32) {
+    (POINT_THREADS + slot / 4, (slot % 4 * 8) as u32)
+}
 /// Words of workgroup memory an AO workgroup needs.
 pub const GROUP_WORDS: usize = RAYS + RAYS_WORDS * GROUP_THREADS;
 
@@ -208,8 +212,8 @@ impl<M: GroupMemory> GroupPool<'_, M> {
     /// Ray `index` as (which ray of its point, the thread of its point).
     fn point_of(&self, index: u32) -> (u32, usize) {
         let (k, slot) = self.points.div_rem(index);
-        let word = self.memory.load(POINT_THREADS + (slot >> 2) as usize);
-        (k, ((word >> ((slot & 3) * 8)) & 0xff) as usize)
+        let (word, shift) = point_thread_byte(slot as usize);
+        (k, ((self.memory.load(word) >> shift) & 0xff) as usize)
     }
 }
 
@@ -262,7 +266,8 @@ pub fn group_camera<const PLAIN: bool, M: GroupMemory>(
     memory.store(base + 4, rays.key);
     // The thread into byte `slot` of the (cleared) list: adding to a zero byte sets it.
     let slot = memory.fetch_add(POINTS, 1) as usize;
-    memory.fetch_add(POINT_THREADS + slot / 4, (thread as u32) << (slot % 4 * 8));
+    let (word, shift) = point_thread_byte(slot);
+    memory.fetch_add(word, (thread as u32) << shift);
     true
 }
 
