@@ -3,10 +3,12 @@ mod common;
 
 use common::{grey, quad, z_score};
 use glam::Vec3;
-use kernels::integrators::ao::ambient_occlusion;
+use kernels::bvh::SceneBuffers;
+use kernels::integrators::ao::{ambient_occlusion, AoRays};
+use kernels::intersect::Ray;
 use kernels::rng::Rng;
 use kernels::sampling::Strata;
-use kernels::types::Triangle;
+use kernels::types::{Triangle, INVALID};
 use runner::scene::Scene;
 
 /// Half size of the "infinite" planes: far beyond every AO ray below (≤ 5 long, from
@@ -43,6 +45,15 @@ fn wall() -> Vec<Triangle> {
     .to_vec()
 }
 
+/// The triangle under point p of the floor, as a camera ray from above finds it; and
+/// `INVALID`: the AO rays either skip the triangle they leave or test it (see
+/// `AoRays::prim`), with the same result.
+fn floor_prims(scene: &SceneBuffers, p: Vec3) -> [u32; 2] {
+    let hit = scene.closest_hit::<false>(&Ray::new(p + Vec3::Z, -Vec3::Z), f32::INFINITY);
+    assert!(hit.is_hit(), "no floor under {p}");
+    [hit.prim, INVALID]
+}
+
 #[test]
 fn open_plane_is_fully_unoccluded() {
     let scene = Scene::new(floor(HUGE), vec![grey(0.5)]).unwrap();
@@ -54,17 +65,12 @@ fn open_plane_is_fully_unoccluded() {
         Vec3::new(123.0, -45.0, 0.0),
         Vec3::new(-9000.0, 9000.0, 0.0),
     ] {
-        for strata in [Strata::NONE, Strata::new(10_000)] {
-            let v = ambient_occlusion::<false>(
-                &scene,
-                p,
-                Vec3::Z,
-                10_000,
-                strata,
-                f32::INFINITY,
-                &mut rng,
-            );
-            assert_eq!(v, 1.0, "at {p}");
+        for prim in floor_prims(&scene, p) {
+            for strata in [Strata::NONE, Strata::new(10_000)] {
+                let rays = AoRays::new(p, prim, Vec3::Z, &mut rng);
+                let v = ambient_occlusion::<false>(&scene, rays, 10_000, strata, f32::INFINITY);
+                assert_eq!(v, 1.0, "at {p}, leaving {prim}");
+            }
         }
     }
 }
@@ -102,14 +108,16 @@ fn corner_of_two_planes_matches_the_analytic_value() {
         // Binomial standard error of a fraction over `rays` independent rays (the strata's
         // is smaller); floor it for p ∈ {0, 1}.
         let se = (want * (1.0 - want) / rays as f64).sqrt().max(1e-6);
-        for strata in [Strata::NONE, Strata::new(rays)] {
-            let got =
-                ambient_occlusion::<false>(&scene, p, Vec3::Z, rays, strata, distance, &mut rng)
-                    as f64;
-            assert!(
-                z_score(got, want, se) < 5.0 || (got - want).abs() < 1e-5,
-                "d = {d}, D = {distance}, {strata:?}: got {got}, expected {want} (se {se})"
-            );
+        for prim in floor_prims(&scene, p) {
+            for strata in [Strata::NONE, Strata::new(rays)] {
+                let point = AoRays::new(p, prim, Vec3::Z, &mut rng);
+                let got = ambient_occlusion::<false>(&scene, point, rays, strata, distance) as f64;
+                assert!(
+                    z_score(got, want, se) < 5.0 || (got - want).abs() < 1e-5,
+                    "d = {d}, D = {distance}, {strata:?}, leaving {prim}: got {got}, \
+                     expected {want} (se {se})"
+                );
+            }
         }
     }
 }

@@ -16,13 +16,17 @@ use crate::rng::{keyed_pair, Rng};
 use crate::sampling::{cosine_hemisphere, orthonormal_basis, Strata};
 use crate::types::{decode_unit, encode_unit, FrameParams, AO_INDEPENDENT, INVALID};
 
-/// The AO rays of one surface point: where they start, the frame about its normal that
-/// their directions are drawn in, and the key of their random numbers. Ray k's numbers
-/// are a function of (key, k) alone (`keyed_pair`), so any thread can make any point's
-/// ray k.
+/// The AO rays of one surface point: where they start, the triangle they leave, the frame
+/// about its normal that their directions are drawn in, and the key of their random
+/// numbers. Ray k's numbers are a function of (key, k) alone (`keyed_pair`), so any thread
+/// can make any point's ray k.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct AoRays {
     pub origin: Vec3,
+    /// The triangle the point is on (`INVALID`: none given). The rays leave it on the side
+    /// of its normal, so they cannot meet it, and traversal does not test it
+    /// (`RayPool::leaves`): every AO ray's walk passes its own triangle's leaf.
+    pub prim: u32,
     /// The normal in one word (`encode_unit`), as the GPU's workgroup pool keeps it.
     pub normal: u32,
     /// Tangent, bitangent and normal (`orthonormal_basis`) of `normal`'s vector.
@@ -31,18 +35,25 @@ pub struct AoRays {
 }
 
 impl AoRays {
-    /// The rays of point `p` with normal `n`; their key is the next number of `rng`.
-    pub fn new(p: Vec3, n: Vec3, rng: &mut Rng) -> Self {
-        Self::at(offset_ray_origin(p, n), encode_unit(n), rng.next_u32())
+    /// The rays of point `p` on triangle `prim` with normal `n`; their key is the next
+    /// number of `rng`.
+    pub fn new(p: Vec3, prim: u32, n: Vec3, rng: &mut Rng) -> Self {
+        Self::at(
+            offset_ray_origin(p, n),
+            prim,
+            encode_unit(n),
+            rng.next_u32(),
+        )
     }
 
-    /// The rays from `origin` (already off the surface) about the normal of word `normal`
-    /// (`encode_unit`), of key `key`.
-    pub fn at(origin: Vec3, normal: u32, key: u32) -> Self {
+    /// The rays from `origin` (already off triangle `prim`'s surface) about the normal of
+    /// word `normal` (`encode_unit`), of key `key`.
+    pub fn at(origin: Vec3, prim: u32, normal: u32, key: u32) -> Self {
         let n = decode_unit(normal);
         let (t, b) = orthonormal_basis(n);
         Self {
             origin,
+            prim,
             normal,
             frame: [t, b, n],
             key,
@@ -77,8 +88,8 @@ impl RayPool for PointPool {
         self.next - 1
     }
 
-    fn ray(&self, index: u32) -> Ray {
-        self.rays.ray(index, self.strata)
+    fn ray(&self, index: u32) -> (Ray, u32) {
+        (self.rays.ray(index, self.strata), self.rays.prim)
     }
 
     fn escaped(&mut self, _index: u32) {
@@ -86,20 +97,18 @@ impl RayPool for PointPool {
     }
 }
 
-/// Unoccluded fraction at `p` with normal `n`, from `rays` cosine-weighted rays of length
+/// Unoccluded fraction at the point of `point`'s rays, from `rays` of them, of length
 /// `distance`, spread over the hemisphere by `strata`. Cosine weighting makes this the
 /// cosine-weighted visibility integral (1/π) ∫ V(ω) cos θ dω estimated with equal weights.
 pub fn ambient_occlusion<const PLAIN: bool>(
     scene: &SceneBuffers,
-    p: Vec3,
-    n: Vec3,
+    point: AoRays,
     rays: u32,
     strata: Strata,
     distance: f32,
-    rng: &mut Rng,
 ) -> f32 {
     let mut pool = PointPool {
-        rays: AoRays::new(p, n, rng),
+        rays: point,
         strata,
         count: rays,
         next: 0,
@@ -118,14 +127,15 @@ fn strata(params: &FrameParams) -> Strata {
     }
 }
 
-/// The visible point of a camera ray, or None where it leaves the scene.
-fn camera_hit<const PLAIN: bool>(scene: &SceneBuffers, ray: &Ray) -> Option<(Vec3, Vec3)> {
+/// The visible point of a camera ray (position, triangle, normal), or None where it
+/// leaves the scene.
+fn camera_hit<const PLAIN: bool>(scene: &SceneBuffers, ray: &Ray) -> Option<(Vec3, u32, Vec3)> {
     let hit = scene.closest_hit::<PLAIN>(ray, f32::INFINITY);
     if !hit.is_hit() {
         return None;
     }
     let s = surface_hit(scene, ray, &hit);
-    Some((s.p, s.n))
+    Some((s.p, s.prim, s.n))
 }
 
 /// One AO sample for a camera ray: 0 where the ray leaves the scene (no surface, no
@@ -138,18 +148,16 @@ pub fn ao_sample<const PLAIN: bool>(
     rays: &mut u32,
 ) -> Vec3 {
     *rays += 1;
-    let Some((p, n)) = camera_hit::<PLAIN>(scene, &ray) else {
+    let Some((p, prim, n)) = camera_hit::<PLAIN>(scene, &ray) else {
         return Vec3::ZERO;
     };
     *rays += params.ao_rays;
     Vec3::splat(ambient_occlusion::<PLAIN>(
         scene,
-        p,
-        n,
+        AoRays::new(p, prim, n, rng),
         params.ao_rays,
         strata(params),
         params.ao_distance,
-        rng,
     ))
 }
 
@@ -170,14 +178,14 @@ pub const GROUP_THREADS: usize = 128;
 /// The pool's layout in workgroup memory, in 32-bit words: the next ray's index, the
 /// number of points with rays, those points' threads in the order they came (a byte each),
 /// each thread's count of escaped rays, and each thread's `AoRays` (origin, normal word,
-/// key). Kept small: the workgroup's memory comes out of the SM's L1, which the walk's
+/// key, triangle). Kept small: the workgroup's memory comes out of the SM's L1, which the walk's
 /// node reads live on (README, "Benchmark suite").
 const NEXT: usize = 0;
 const POINTS: usize = 1;
 const POINT_THREADS: usize = 2;
 const ESCAPED: usize = POINT_THREADS + GROUP_THREADS / 4;
 const RAYS: usize = ESCAPED + GROUP_THREADS;
-const RAYS_WORDS: usize = 5;
+const RAYS_WORDS: usize = 6;
 const _: () = assert!(GROUP_THREADS <= 256, "a point's thread must fit in a byte");
 /// Where point `slot`'s thread is kept in the point list: the word and the shift of its byte.
 fn point_thread_byte(slot: usize) -> (usize, u32) {
@@ -227,7 +235,7 @@ impl<M: GroupMemory> RayPool for GroupPool<'_, M> {
         }
     }
 
-    fn ray(&self, index: u32) -> Ray {
+    fn ray(&self, index: u32) -> (Ray, u32) {
         let (k, thread) = self.point_of(index);
         let base = RAYS + RAYS_WORDS * thread;
         let f = |i: usize| f32::from_bits(self.memory.load(base + i));
@@ -235,7 +243,9 @@ impl<M: GroupMemory> RayPool for GroupPool<'_, M> {
         // six more words a point made AO 0.3–1% slower (H200; README, "Benchmark suite").
         let origin = Vec3::new(f(0), f(1), f(2));
         let (normal, key) = (self.memory.load(base + 3), self.memory.load(base + 4));
-        AoRays::at(origin, normal, key).ray(k, self.strata)
+        let prim = self.memory.load(base + 5);
+        let rays = AoRays::at(origin, prim, normal, key);
+        (rays.ray(k, self.strata), prim)
     }
 
     fn escaped(&mut self, index: u32) {
@@ -254,16 +264,17 @@ pub fn group_camera<const PLAIN: bool, M: GroupMemory>(
     ray: &Ray,
     rng: &mut Rng,
 ) -> bool {
-    let Some((p, n)) = camera_hit::<PLAIN>(scene, ray) else {
+    let Some((p, prim, n)) = camera_hit::<PLAIN>(scene, ray) else {
         return false;
     };
-    let rays = AoRays::new(p, n, rng);
+    let rays = AoRays::new(p, prim, n, rng);
     let base = RAYS + RAYS_WORDS * thread;
     memory.store(base, rays.origin.x.to_bits());
     memory.store(base + 1, rays.origin.y.to_bits());
     memory.store(base + 2, rays.origin.z.to_bits());
     memory.store(base + 3, rays.normal);
     memory.store(base + 4, rays.key);
+    memory.store(base + 5, rays.prim);
     // The thread into byte `slot` of the (cleared) list: adding to a zero byte sets it.
     let slot = memory.fetch_add(POINTS, 1) as usize;
     let (word, shift) = point_thread_byte(slot);
