@@ -29,10 +29,13 @@ const THREE_QUARTER_AZIMUTH_DEG: f32 = 35.0;
 const THREE_QUARTER_ELEVATION_DEG: f32 = 25.0;
 
 /// The camera pose from the flags, else the scene's `# camera:` line, else a three-quarter
-/// view from the front that frames the scene's bounding sphere, upright for `--up-axis`.
+/// view from the front that frames the scene's bounding sphere, upright for `--up-axis`;
+/// in the kernels' coordinates (the flags and the file's camera are in the file's:
+/// `Scene::frame` maps them).
 pub fn camera_pose(args: &SceneOptions, scene: &Scene) -> Result<CameraPose> {
     let (lo, hi) = scene.bounds();
     let hint = scene.camera;
+    let frame = scene.frame;
     let fov = args.fov.or(hint.map(|h| h.fov)).unwrap_or(DEFAULT_FOV);
     if !(fov > 0.0 && fov < 180.0) {
         bail!("--fov must be in (0, 180) degrees, got {fov}");
@@ -40,9 +43,11 @@ pub fn camera_pose(args: &SceneOptions, scene: &Scene) -> Result<CameraPose> {
     let target = args
         .target
         .or(hint.map(|h| h.target))
+        .map(|p| frame.point(p))
         .unwrap_or(0.5 * (lo + hi));
     let up = args.up.or(hint.map(|h| h.up)).unwrap_or(args.up_axis.up());
-    let eye = args.eye.or(hint.map(|h| h.eye)).unwrap_or_else(|| {
+    let eye = args.eye.or(hint.map(|h| h.eye)).map(|p| frame.point(p));
+    let eye = eye.unwrap_or_else(|| {
         let radius = 0.5 * (hi - lo).length();
         let (az, el) = (
             THREE_QUARTER_AZIMUTH_DEG.to_radians(),
@@ -57,7 +62,9 @@ pub fn camera_pose(args: &SceneOptions, scene: &Scene) -> Result<CameraPose> {
     if !forward.is_finite() || !eye.is_finite() || !target.is_finite() {
         bail!("the camera's position or view direction is not finite (eye {eye}, target {target})");
     }
-    if forward.length() <= f32::EPSILON * eye.abs().max_element().max(1.0) {
+    // The same point to f32 precision: relative to the coordinates, as a scene of any size
+    // may be framed (a floor of 1 here refused every scene under ~1e-7 across).
+    if forward.length() <= f32::EPSILON * eye.abs().max_element().max(target.abs().max_element()) {
         bail!("--eye and --target are the same point");
     }
     // |forward|² overflows f32 beyond ~1.8e19: the view direction would normalise to zero.

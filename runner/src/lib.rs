@@ -25,5 +25,6 @@ pub mod presplit;
 pub mod render;
 pub mod restir;
 pub mod scene;
+pub mod scene_frame;
 pub mod textures;
 pub mod viewer;

@@ -366,7 +366,11 @@ pub fn frame_params(
     }
     // The scene's diagonal walks every triangle: once here for both its uses.
     let extent = scene.extent();
-    let ao_distance = kernel.ao_distance.unwrap_or(0.25 * extent);
+    // --ao-distance is in the file's units (`Scene::frame`).
+    let ao_distance = kernel
+        .ao_distance
+        .map(|d| scene.frame.length(d))
+        .unwrap_or(0.25 * extent);
     if !(ao_distance > 0.0 && ao_distance.is_finite()) {
         bail!("--ao-distance must be a positive number, got {ao_distance}");
     }

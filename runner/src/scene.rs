@@ -10,6 +10,7 @@ use kernels::types::{Light, Material, TextureInfo, Triangle, TriangleShading};
 use crate::bail;
 use crate::error::{Error, Result};
 use crate::options::SceneOptions;
+use crate::scene_frame::SceneFrame;
 
 /// Albedo of surfaces with no material (missing MTL or no `usemtl`).
 pub const DEFAULT_ALBEDO: f32 = 0.8;
@@ -40,7 +41,11 @@ pub struct Scene {
     pub materials: Vec<Material>,
     /// The emissive triangles, with the alias table for power sampling.
     pub lights: Vec<Light>,
+    /// The file's camera, in the file's coordinates (`camera::camera_pose` maps it).
     pub camera: Option<CameraHint>,
+    /// The file's coordinates to the kernels' (moved and scaled where the file's would
+    /// cost precision; see `scene_frame`).
+    pub frame: SceneFrame,
     /// A sun the file itself has (a glTF directional light); `--sun` overrides it.
     pub sun: Option<crate::gltf_lights::SceneSun>,
     pub warnings: Vec<String>,
@@ -205,11 +210,15 @@ impl Scene {
 
     /// `new`, for triangles and materials that refer to shading attributes and textures.
     pub fn with_attributes(
-        triangles: Vec<Triangle>,
-        materials: Vec<Material>,
+        mut triangles: Vec<Triangle>,
+        mut materials: Vec<Material>,
         attributes: SurfaceAttributes,
     ) -> Result<Self> {
         let total = triangles.len();
+        let frame = SceneFrame::fitting(corners(&triangles));
+        if !frame.is_identity() {
+            to_frame(&frame, &mut triangles, &mut materials);
+        }
         let triangles: Vec<Triangle> = triangles.into_iter().filter(is_proper).collect();
         if let Some(far) = triangles
             .iter()
@@ -278,6 +287,7 @@ impl Scene {
             materials,
             lights,
             camera: None,
+            frame,
             sun: None,
             warnings,
             attributes,
@@ -344,6 +354,20 @@ impl Scene {
     pub fn extent(&self) -> f32 {
         let (lo, hi) = self.bounds();
         (hi - lo).length()
+    }
+}
+
+/// Move `triangles` into `frame` (from the file's coordinates), and the bump maps'
+/// displacements, which are in scene units, with them.
+fn to_frame(frame: &SceneFrame, triangles: &mut [Triangle], materials: &mut [Material]) {
+    let point = |p: [f32; 3]| frame.point(Vec3::from(p)).to_array();
+    for t in triangles {
+        (t.p0, t.p1, t.p2) = (point(t.p0), point(t.p1), point(t.p2));
+    }
+    for m in materials {
+        if m.normal_map_kind == kernels::types::NORMAL_MAP_HEIGHT {
+            m.normal_scale = frame.length(m.normal_scale);
+        }
     }
 }
 

@@ -1110,7 +1110,8 @@ pub fn bump_mapped(tri: &Triangle, a: &TriangleShading, base: Vec3, slope: Vec2)
 
 /// Move a ray origin off the surface along the normal by a few ulps of the position
 /// (Wächter & Binder, "A Fast and Robust Method for Avoiding Self-Intersection", Ray
-/// Tracing Gems ch. 6): no acne at any scene scale, and no leaks through thin walls.
+/// Tracing Gems ch. 6): no acne, and no leaks through thin walls, in scenes of about unit
+/// size near the origin, where the loader keeps every scene (`runner::scene_frame`).
 pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
     Vec3::new(
         offset_component(p.x, n.x),
