@@ -92,6 +92,36 @@ fn malformed_obj_files_name_the_line() {
             "short.obj:1: vertex needs 3 coordinates",
         ),
         (
+            "eight.obj",
+            "v 0 0 0\nv 1 0 0 1 1 1 1 1\nv 0 1 0\nf 1 2 3\n".into(),
+            "eight.obj:2: vertex has 8 numbers; expected 3",
+        ),
+        (
+            "five.obj",
+            "v 0 0 0 1 1\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".into(),
+            "five.obj:1: vertex has 5 numbers",
+        ),
+        (
+            "weight0.obj",
+            "v 0 0 0\nv 1 0 0 0\nv 0 1 0\nf 1 2 3\n".into(),
+            "weight0.obj:2: vertex weight 0 leaves no finite position",
+        ),
+        (
+            "weightnan.obj",
+            "v 0 0 0\nv 1 0 0 nan\nv 0 1 0\nf 1 2 3\n".into(),
+            "weightnan.obj:2: vertex weight 'nan' is not a finite number",
+        ),
+        (
+            "weighttiny.obj",
+            "v 0 0 0\nv 1e30 0 0 1e-30\nv 0 1 0\nf 1 2 3\n".into(),
+            "weighttiny.obj:2: vertex weight 1e-30 leaves no finite position",
+        ),
+        (
+            "colour.obj",
+            "v 0 0 0 1 x 1\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".into(),
+            "colour.obj:1: vertex colour 'x' is not a finite number",
+        ),
+        (
             "oob.obj",
             format!("{TRI}f 1 2 9\n"),
             "oob.obj:4: face index 9 is out of range (3 vertices so far)",

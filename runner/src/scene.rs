@@ -1152,6 +1152,44 @@ fn material_from_mtl(m: &tobj::Material) -> Material {
     material
 }
 
+/// A vertex line's numbers after x y z: none, a weight w that tobj divides them by (not
+/// zero, and leaving them finite), or a colour r g b (tobj drops a colour that does not
+/// parse and gives the next vertices' colours to this one). Anything else tobj refuses
+/// without a line number.
+fn check_vertex_extras<'a>(
+    name: &str,
+    n: usize,
+    xyz: [f32; 3],
+    extras: impl Iterator<Item = &'a str>,
+) -> Result<()> {
+    let extras: Vec<&str> = extras.collect();
+    let number = |w: &str, what: &str| match w.parse::<f32>() {
+        Ok(x) if x.is_finite() => Ok(x),
+        _ => Err(Error(format!(
+            "{name}:{n}: vertex {what} '{w}' is not a finite number"
+        ))),
+    };
+    match extras[..] {
+        [] => {}
+        [word] => {
+            let w = number(word, "weight")?;
+            if w == 0.0 || xyz.iter().any(|x| !(x / w).is_finite()) {
+                bail!("{name}:{n}: vertex weight {word} leaves no finite position (x/w, y/w, z/w)");
+            }
+        }
+        [r, g, b] => {
+            for c in [r, g, b] {
+                number(c, "colour")?;
+            }
+        }
+        _ => bail!(
+            "{name}:{n}: vertex has {} numbers; expected 3 (x y z), 4 (x y z w) or 6 (x y z r g b)",
+            3 + extras.len()
+        ),
+    }
+    Ok(())
+}
+
 /// Check vertex and face lines before tobj sees them, so every error names its line:
 /// tobj accepts "nan" and "inf" coordinates, silently drops faces of fewer than three
 /// vertices, and reports bad indices without a line number.
@@ -1174,15 +1212,17 @@ fn check_lines(name: &str, text: &str) -> Result<()> {
                 if count < 3 {
                     bail!("{name}:{n}: vertex needs 3 coordinates, got {count}");
                 }
-                for w in coords {
-                    match w.parse::<f32>() {
-                        Ok(x) if x.is_finite() => {}
+                let mut xyz = [0.0f32; 3];
+                for (x, w) in xyz.iter_mut().zip(coords) {
+                    *x = match w.parse::<f32>() {
+                        Ok(x) if x.is_finite() => x,
                         Ok(_) => {
                             bail!("{name}:{n}: vertex coordinate '{w}' is not a finite number")
                         }
                         Err(_) => bail!("{name}:{n}: bad vertex coordinate '{w}'"),
-                    }
+                    };
                 }
+                check_vertex_extras(name, n, xyz, words)?;
                 vertices += 1;
             }
             Some("vt") => texcoords += 1,
