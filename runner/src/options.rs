@@ -366,13 +366,21 @@ pub fn frame_params(
     }
     // The scene's diagonal walks every triangle: once here for both its uses.
     let extent = scene.extent();
+    if let Some(d) = kernel.ao_distance {
+        if !(d > 0.0 && d.is_finite()) {
+            bail!("--ao-distance must be a positive number, got {d}");
+        }
+    }
     // --ao-distance is in the file's units (`Scene::frame`).
     let ao_distance = kernel
         .ao_distance
         .map(|d| scene.frame.length(d))
         .unwrap_or(0.25 * extent);
-    if !(ao_distance > 0.0 && ao_distance.is_finite()) {
-        bail!("--ao-distance must be a positive number, got {ao_distance}");
+    if !ao_distance.is_finite() {
+        bail!(
+            "--ao-distance overflows f32 once scaled with this small scene (×{})",
+            scene.frame.scale
+        );
     }
     let camera = crate::camera::camera(args, scene)?;
     let params = FrameParams {
