@@ -1,6 +1,7 @@
 //! A scene renders the same whatever its units and wherever it stands: the loader moves
 //! small and far scenes into the range where ray offsets are precise
-//! (`runner::scene_frame`), and the camera and AO distance given in the file's units follow.
+//! (`runner::scene_frame`; an OBJ's positions are moved in f64, before they are rounded to
+//! f32), and the camera and AO distance given in the file's units follow.
 //! Through the real binary, as a user's OBJ would go.
 use std::path::PathBuf;
 use std::process::Command;
@@ -133,9 +134,17 @@ fn small_and_far_scenes_render_as_at_unit_scale() {
         let got = render(&format!("{name}_mis"), &obj, &mis);
         assert_same_picture(&got, &unit_mis, 0.5, &format!("{name} MIS"));
     }
+    // Georeferenced (UTM-like coordinates, millions of units from the origin, where f32
+    // steps are 0.5): read in f64 and moved before the rounding, under the default camera.
+    let without_camera = |obj: String| obj.lines().skip(1).collect::<Vec<_>>().join("\n");
+    // (A box 0.3 across: f32's 0.5 steps there would squash it flat.)
+    let unit = without_camera(box_on_floor(0.3, [0.0; 3]));
+    let utm = without_camera(box_on_floor(0.3, [5.0e6 + 0.37, 30.0, 4.0e6 + 0.61]));
+    let want = render("unit_default_ao", &unit, &ao);
+    let got = render("utm_ao", &utm, &ao);
+    assert_same_picture(&got, &want, 0.97, "georeferenced AO");
     // --eye and --target in the file's units, instead of its camera line.
-    let obj = box_on_floor(1e-6, [0.0; 3]);
-    let obj = obj.lines().skip(1).collect::<Vec<_>>().join("\n");
+    let obj = without_camera(box_on_floor(1e-6, [0.0; 3]));
     let flags = [
         "--eye",
         "2.5e-6,2e-6,3e-6",

@@ -3,7 +3,7 @@
 //! `Ke` the radiance emitted from the front (counter-clockwise) side.
 use std::path::{Path, PathBuf};
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use kernels::bvh::BvhNode;
 use kernels::types::{Light, Material, TextureInfo, Triangle, TriangleShading};
 
@@ -696,7 +696,11 @@ fn parse_obj(
     // Most files need none of `normalise`'s repairs: no second copy of a large text then.
     let repaired = needs_normalising(text).then(|| normalise(text));
     let text = repaired.as_deref().unwrap_or(text);
-    check_lines(name, text)?;
+    let (lo, hi) = check_lines(name, text)?;
+    // Far from the origin: moved there in f64, before tobj rounds the positions to f32.
+    let centre = crate::scene_frame::far_centre(lo, hi);
+    let centred = (centre != DVec3::ZERO).then(|| centre_obj_vertices(text, centre));
+    let text = centred.as_deref().unwrap_or(text);
     // An MTL error that must stop the load (it names its line) travels past tobj here.
     let mtl_error = std::cell::RefCell::new(None);
     let load_mtl = |path: &Path| match load_mtl(path) {
@@ -947,6 +951,8 @@ fn parse_obj(
     warnings.append(&mut scene.warnings);
     scene.warnings = warnings;
     scene.camera = camera;
+    // The file's coordinates are the centred ones plus `centre`.
+    scene.frame.centre += centre;
     Ok(scene)
 }
 
@@ -1192,8 +1198,10 @@ fn check_vertex_extras<'a>(
 
 /// Check vertex and face lines before tobj sees them, so every error names its line:
 /// tobj accepts "nan" and "inf" coordinates, silently drops faces of fewer than three
-/// vertices, and reports bad indices without a line number.
-fn check_lines(name: &str, text: &str) -> Result<()> {
+/// vertices, and reports bad indices without a line number. Returns the box of the
+/// vertices' positions, read in f64 (`obj_position`).
+fn check_lines(name: &str, text: &str) -> Result<(DVec3, DVec3)> {
+    let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
     let mut vertices: i64 = 0;
     // Texture coordinates and normals so far: their indices in faces are checked too
     // (tobj overflows on indices such as -9223372036854775808).
@@ -1223,6 +1231,8 @@ fn check_lines(name: &str, text: &str) -> Result<()> {
                     };
                 }
                 check_vertex_extras(name, n, xyz, words)?;
+                let p = obj_position(line);
+                (lo, hi) = (lo.min(p), hi.max(p));
                 vertices += 1;
             }
             Some("vt") => texcoords += 1,
@@ -1258,7 +1268,45 @@ fn check_lines(name: &str, text: &str) -> Result<()> {
             _ => {}
         }
     }
-    Ok(())
+    Ok((lo, hi))
+}
+
+/// The position of a checked vertex line (`check_lines`) in f64: x y z, divided by the
+/// weight w where the line has one.
+fn obj_position(line: &str) -> DVec3 {
+    let numbers: Vec<f64> = line
+        .split_whitespace()
+        .skip(1)
+        .map(|w| w.parse().unwrap_or(f64::NAN))
+        .collect();
+    let p = DVec3::new(numbers[0], numbers[1], numbers[2]);
+    match numbers[3..] {
+        [w] => p / w,
+        _ => p,
+    }
+}
+
+/// `text` with its vertex lines moved by −`centre`, in f64, before tobj rounds them to
+/// f32 (see `scene_frame`): x y z [w] becomes (x y z)/w − centre, a colour stays.
+fn centre_obj_vertices(text: &str, centre: DVec3) -> String {
+    let mut out = String::with_capacity(text.len() + text.len() / 8);
+    for line in text.lines() {
+        let mut words = line.split_whitespace();
+        if words.next() == Some("v") {
+            let p = obj_position(line) - centre;
+            let colour: Vec<&str> = words.skip(3).collect();
+            let colour = if colour.len() == 3 {
+                colour.join(" ")
+            } else {
+                String::new()
+            };
+            out += &format!("v {} {} {} {colour}\n", p.x, p.y, p.z);
+        } else {
+            out += line;
+            out.push('\n');
+        }
+    }
+    out
 }
 
 /// An OBJ index (1-based, or negative: counted back from the last one so far) must name

@@ -14,8 +14,10 @@
 //! two floats within a factor of two of each other, Sterbenz; a power of two), so vertices
 //! shared by triangles stay shared and watertightness is kept. Everything else that the
 //! user gives in the file's units (`--eye`, `--target`, the file's camera, `--ao-distance`)
-//! goes through the same frame.
-use glam::Vec3;
+//! goes through the same frame. An OBJ file's positions are read in f64 and moved before
+//! they are rounded to f32 (`scene::centre_obj_vertices`): georeferenced exports (UTM
+//! coordinates in the millions of metres) keep their centimetres.
+use glam::{DVec3, Vec3};
 
 /// A scene whose bounding-box diagonal is below this is scaled up to it (by the smallest
 /// power of two that gets there): the offset near the origin, 1/65536, is then at most
@@ -29,7 +31,8 @@ const FAR_FROM_ORIGIN: f32 = 8.0;
 /// File coordinates to the kernels': p ↦ (p − centre) · scale.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SceneFrame {
-    pub centre: Vec3,
+    /// In f64: a file read in f64 may have been moved before its rounding to f32.
+    pub centre: DVec3,
     /// A power of two, at least 1.
     pub scale: f32,
 }
@@ -43,7 +46,7 @@ impl Default for SceneFrame {
 impl SceneFrame {
     /// The file's own coordinates.
     pub const IDENTITY: Self = Self {
-        centre: Vec3::ZERO,
+        centre: DVec3::ZERO,
         scale: 1.0,
     };
 
@@ -55,16 +58,7 @@ impl SceneFrame {
         if !(extent > 0.0 && extent.is_finite()) {
             return Self::IDENTITY;
         }
-        // lo + half the span, not (lo + hi) / 2, which can overflow.
-        let middle = lo + 0.5 * (hi - lo);
-        let far = |m: f32| {
-            if m.abs() > FAR_FROM_ORIGIN * extent {
-                m
-            } else {
-                0.0
-            }
-        };
-        let centre = Vec3::new(far(middle.x), far(middle.y), far(middle.z));
+        let centre = far_centre(lo.as_dvec3(), hi.as_dvec3());
         let mut scale = 1.0f32;
         while extent * scale < MIN_EXTENT {
             scale *= 2.0;
@@ -78,13 +72,33 @@ impl SceneFrame {
 
     /// A position in the file's coordinates, in the kernels'.
     pub fn point(&self, p: Vec3) -> Vec3 {
-        (p - self.centre) * self.scale
+        ((p.as_dvec3() - self.centre) * self.scale as f64).as_vec3()
     }
 
     /// A length in the file's units, in the kernels'.
     pub fn length(&self, d: f32) -> f32 {
         d * self.scale
     }
+}
+
+/// The centre to move a box of points (lo, hi) to: its middle along each axis where that is
+/// more than `FAR_FROM_ORIGIN` diagonals from the origin, 0 along the others; 0 for an
+/// empty or unbounded box.
+pub fn far_centre(lo: DVec3, hi: DVec3) -> DVec3 {
+    let extent = (hi - lo).length();
+    if !(extent > 0.0 && extent.is_finite()) {
+        return DVec3::ZERO;
+    }
+    // lo + half the span, not (lo + hi) / 2, which can overflow.
+    let middle = lo + 0.5 * (hi - lo);
+    let far = |m: f64| {
+        if m.abs() > FAR_FROM_ORIGIN as f64 * extent {
+            m
+        } else {
+            0.0
+        }
+    };
+    DVec3::new(far(middle.x), far(middle.y), far(middle.z))
 }
 
 #[cfg(test)]
@@ -101,7 +115,7 @@ mod tests {
     fn small_scenes_are_scaled_up_by_a_power_of_two() {
         let corners = [Vec3::ZERO, Vec3::new(3e-6, 1e-6, 0.0)];
         let f = SceneFrame::fitting(corners.into_iter());
-        assert_eq!(f.centre, Vec3::ZERO);
+        assert_eq!(f.centre, DVec3::ZERO);
         assert_eq!(f.scale.log2().fract(), 0.0, "{}", f.scale);
         let extent = corners[1].length() * f.scale;
         assert!((MIN_EXTENT..2.0 * MIN_EXTENT).contains(&extent), "{extent}");
@@ -114,10 +128,10 @@ mod tests {
         let corners = [Vec3::new(5000.0, -2.0, 0.0), Vec3::new(5010.25, 3.0, 7.0)];
         let f = SceneFrame::fitting(corners.into_iter());
         assert_eq!(f.scale, 1.0);
-        assert_eq!(f.centre, Vec3::new(5005.125, 0.0, 0.0));
+        assert_eq!(f.centre, DVec3::new(5005.125, 0.0, 0.0));
         for p in corners {
             // Sterbenz: the difference is exact, so adding the centre back restores p.
-            assert_eq!(f.point(p) + f.centre, p);
+            assert_eq!(f.point(p) + f.centre.as_vec3(), p);
         }
     }
 
