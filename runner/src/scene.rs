@@ -698,7 +698,7 @@ fn parse_obj(
     let text = repaired.as_deref().unwrap_or(text);
     let (lo, hi) = check_lines(name, text)?;
     // Far from the origin: moved there in f64, before tobj rounds the positions to f32.
-    let centre = crate::scene_frame::far_centre(lo, hi);
+    let centre = crate::scene_frame::far_centre(lo.as_dvec3(), hi.as_dvec3());
     let centred = (centre != DVec3::ZERO).then(|| centre_obj_vertices(text, centre));
     let text = centred.as_deref().unwrap_or(text);
     // An MTL error that must stop the load (it names its line) travels past tobj here.
@@ -1161,13 +1161,13 @@ fn material_from_mtl(m: &tobj::Material) -> Material {
 /// A vertex line's numbers after x y z: none, a weight w that tobj divides them by (not
 /// zero, and leaving them finite), or a colour r g b (tobj drops a colour that does not
 /// parse and gives the next vertices' colours to this one). Anything else tobj refuses
-/// without a line number.
+/// without a line number. Returns the weight (1 without one).
 fn check_vertex_extras<'a>(
     name: &str,
     n: usize,
     xyz: [f32; 3],
     extras: impl Iterator<Item = &'a str>,
-) -> Result<()> {
+) -> Result<f32> {
     let extras: Vec<&str> = extras.collect();
     let number = |w: &str, what: &str| match w.parse::<f32>() {
         Ok(x) if x.is_finite() => Ok(x),
@@ -1182,6 +1182,7 @@ fn check_vertex_extras<'a>(
             if w == 0.0 || xyz.iter().any(|x| !(x / w).is_finite()) {
                 bail!("{name}:{n}: vertex weight {word} leaves no finite position (x/w, y/w, z/w)");
             }
+            return Ok(w);
         }
         [r, g, b] => {
             for c in [r, g, b] {
@@ -1193,15 +1194,15 @@ fn check_vertex_extras<'a>(
             3 + extras.len()
         ),
     }
-    Ok(())
+    Ok(1.0)
 }
 
 /// Check vertex and face lines before tobj sees them, so every error names its line:
 /// tobj accepts "nan" and "inf" coordinates, silently drops faces of fewer than three
 /// vertices, and reports bad indices without a line number. Returns the box of the
-/// vertices' positions, read in f64 (`obj_position`).
-fn check_lines(name: &str, text: &str) -> Result<(DVec3, DVec3)> {
-    let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+/// vertices' positions (to f32 precision: it only decides whether to move them).
+fn check_lines(name: &str, text: &str) -> Result<(Vec3, Vec3)> {
+    let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
     let mut vertices: i64 = 0;
     // Texture coordinates and normals so far: their indices in faces are checked too
     // (tobj overflows on indices such as -9223372036854775808).
@@ -1230,8 +1231,8 @@ fn check_lines(name: &str, text: &str) -> Result<(DVec3, DVec3)> {
                         Err(_) => bail!("{name}:{n}: bad vertex coordinate '{w}'"),
                     };
                 }
-                check_vertex_extras(name, n, xyz, words)?;
-                let p = obj_position(line);
+                let w = check_vertex_extras(name, n, xyz, words)?;
+                let p = Vec3::from_array(xyz) / w;
                 (lo, hi) = (lo.min(p), hi.max(p));
                 vertices += 1;
             }
@@ -1271,17 +1272,20 @@ fn check_lines(name: &str, text: &str) -> Result<(DVec3, DVec3)> {
     Ok((lo, hi))
 }
 
-/// The position of a checked vertex line (`check_lines`) in f64: x y z, divided by the
-/// weight w where the line has one.
+/// The position of a checked vertex line (`check_lines`), read in f64: x y z, divided by
+/// the weight w where the line has one.
 fn obj_position(line: &str) -> DVec3 {
-    let numbers: Vec<f64> = line
+    let mut numbers = line
         .split_whitespace()
         .skip(1)
-        .map(|w| w.parse().unwrap_or(f64::NAN))
-        .collect();
-    let p = DVec3::new(numbers[0], numbers[1], numbers[2]);
-    match numbers[3..] {
-        [w] => p / w,
+        .map(|w| w.parse().unwrap_or(f64::NAN));
+    let mut xyz = [f64::NAN; 3];
+    for x in &mut xyz {
+        *x = numbers.next().unwrap_or(f64::NAN);
+    }
+    let p = DVec3::from_array(xyz);
+    match (numbers.next(), numbers.next()) {
+        (Some(w), None) => p / w,
         _ => p,
     }
 }
