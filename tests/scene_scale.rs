@@ -1,7 +1,7 @@
 //! A scene renders the same whatever its units and wherever it stands: the loader moves
 //! small and far scenes into the range where ray offsets are precise
-//! (`runner::scene_frame`; an OBJ's positions are moved in f64, before they are rounded to
-//! f32), and the camera and AO distance given in the file's units follow.
+//! (`runner::scene_frame`; OBJ and PLY positions are moved in f64, before they are rounded
+//! to f32), and the camera and AO distance given in the file's units follow.
 //! Through the real binary, as a user's OBJ would go.
 use std::path::PathBuf;
 use std::process::Command;
@@ -53,10 +53,50 @@ fn box_on_floor(scale: f64, offset: [f64; 3]) -> String {
     obj
 }
 
+/// An OBJ's vertices and faces (no camera line) as an ASCII PLY with f64 positions.
+fn obj_as_ply(obj: &str) -> String {
+    let lines = |key: &str| -> Vec<String> {
+        obj.lines()
+            .filter_map(|l| l.strip_prefix(key))
+            .map(str::to_string)
+            .collect()
+    };
+    let (vertices, faces) = (lines("v "), lines("f "));
+    let mut ply = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\n\
+         property double z\nelement face {}\nproperty list uchar int vertex_indices\n\
+         end_header\n",
+        vertices.len(),
+        faces.len()
+    );
+    for v in vertices {
+        ply += &format!("{v}\n");
+    }
+    for f in faces {
+        let corners: Vec<String> = f
+            .split_whitespace()
+            .map(|k| (k.parse::<usize>().unwrap() - 1).to_string())
+            .collect();
+        ply += &format!("{} {}\n", corners.len(), corners.join(" "));
+    }
+    ply
+}
+
+/// The image of PLY text `ply` with `flags`, as linear RGB floats.
+fn render_ply(name: &str, ply: &str, flags: &[&str]) -> Vec<f32> {
+    render_file(&format!("{name}.ply"), ply, flags)
+}
+
 /// The image of `obj` with `flags`, as linear RGB floats.
 fn render(name: &str, obj: &str, flags: &[&str]) -> Vec<f32> {
-    let scene = dir().join(format!("{name}.obj"));
-    std::fs::write(&scene, obj).unwrap();
+    render_file(&format!("{name}.obj"), obj, flags)
+}
+
+/// The image of scene file `file_name` holding `text`, rendered with `flags`.
+fn render_file(file_name: &str, text: &str, flags: &[&str]) -> Vec<f32> {
+    let name = file_name.rsplit_once('.').unwrap().0;
+    let scene = dir().join(file_name);
+    std::fs::write(&scene, text).unwrap();
     let out = dir().join(format!("{name}.exr"));
     let mut args = vec![
         "render",
@@ -143,6 +183,9 @@ fn small_and_far_scenes_render_as_at_unit_scale() {
     let want = render("unit_default_ao", &unit, &ao);
     let got = render("utm_ao", &utm, &ao);
     assert_same_picture(&got, &want, 0.97, "georeferenced AO");
+    // The same as a PLY of doubles, as scanners export georeferenced meshes.
+    let got = render_ply("utm_ply_ao", &obj_as_ply(&utm), &ao);
+    assert_same_picture(&got, &want, 0.97, "georeferenced PLY AO");
     // --eye and --target in the file's units, instead of its camera line.
     let obj = without_camera(box_on_floor(1e-6, [0.0; 3]));
     let flags = [

@@ -5,7 +5,7 @@
 //! A PLY carries no material: surfaces are Lambertian grey (`scene::DEFAULT_ALBEDO`).
 use std::path::Path;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use kernels::types::{Material, Triangle};
 use ply_rs_bw::ply::Property;
 
@@ -24,17 +24,18 @@ pub fn is_ply(path: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("ply"))
 }
 
-/// A scalar property as f32.
-fn scalar(p: &Property) -> Option<f32> {
+/// A scalar property as f64 (every kind converts exactly): positions stay in f64 until
+/// they are moved near the origin (`scene_frame`), normals are rounded to f32 at once.
+fn scalar(p: &Property) -> Option<f64> {
     Some(match *p {
-        Property::Char(v) => v as f32,
-        Property::UChar(v) => v as f32,
-        Property::Short(v) => v as f32,
-        Property::UShort(v) => v as f32,
-        Property::Int(v) => v as f32,
-        Property::UInt(v) => v as f32,
-        Property::Float(v) => v,
-        Property::Double(v) => v as f32,
+        Property::Char(v) => v as f64,
+        Property::UChar(v) => v as f64,
+        Property::Short(v) => v as f64,
+        Property::UShort(v) => v as f64,
+        Property::Int(v) => v as f64,
+        Property::UInt(v) => v as f64,
+        Property::Float(v) => v as f64,
+        Property::Double(v) => v,
         _ => return None,
     })
 }
@@ -105,18 +106,26 @@ pub fn parse_ply_bytes(name: &str, bytes: Vec<u8>) -> Result<Scene> {
         let (Some(x), Some(y), Some(z)) = (get("x"), get("y"), get("z")) else {
             bail!("scene '{name}': vertex {i} has no x, y, z");
         };
-        let p = Vec3::new(x, y, z);
-        if !p.is_finite() {
-            bail!("scene '{name}': vertex {i} is not finite ({p})");
+        let p = DVec3::new(x, y, z);
+        if !p.as_vec3().is_finite() {
+            bail!("scene '{name}': vertex {i} is not finite in f32 ({p})");
         }
         positions.push(p);
         if let (Some(nx), Some(ny), Some(nz)) = (get("nx"), get("ny"), get("nz")) {
-            normals.push(Vec3::new(nx, ny, nz));
+            normals.push(DVec3::new(nx, ny, nz).as_vec3());
         }
         if let Some(c) = vertex_colour(v) {
             colours.push(c);
         }
     }
+    // Far from the origin (georeferenced scans in f64): moved there before the rounding.
+    let (lo, hi) = positions
+        .iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
+            (lo.min(p), hi.max(p))
+        });
+    let centre = crate::scene_frame::far_centre(lo, hi);
+    let positions: Vec<Vec3> = positions.iter().map(|&p| (p - centre).as_vec3()).collect();
     let has_normals = !normals.is_empty() && normals.len() == positions.len();
     let has_colours = !colours.is_empty() && colours.len() == positions.len();
     let mut warnings = Vec::new();
@@ -163,5 +172,7 @@ pub fn parse_ply_bytes(name: &str, bytes: Vec<u8>) -> Result<Scene> {
         .map_err(|e| Error(format!("scene '{name}': {e}")))?;
     warnings.append(&mut scene.warnings);
     scene.warnings = warnings;
+    // The file's coordinates are the centred ones plus `centre`.
+    scene.frame.centre += centre;
     Ok(scene)
 }
