@@ -232,8 +232,8 @@ fn textures_and_vertex_normals_gpu_match_cpu() {
     let (w, h, spp) = (40, 40, 2);
     let mut sa = scene_args(w, h);
     sa.scene = Some(dir.join("s.obj"));
-    sa.eye = Some(glam::Vec3::new(0.0, 2.5, 1.5));
-    sa.target = Some(glam::Vec3::ZERO);
+    sa.eye = Some(glam::DVec3::new(0.0, 2.5, 1.5));
+    sa.target = Some(glam::DVec3::ZERO);
     let mut scene = load_scene(&sa).unwrap();
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
     for integrator in [

@@ -15,7 +15,13 @@ use runner::scene::Scene;
 fn params(scene: &Scene, w: u32, h: u32, seed: u32, light_sampling: u32) -> FrameParams {
     let c = scene.camera.expect("scene camera");
     FrameParams {
-        camera: look_at(c.eye, c.target, c.up, c.fov, w as f32 / h as f32),
+        camera: look_at(
+            c.eye.as_vec3(),
+            c.target.as_vec3(),
+            c.up,
+            c.fov,
+            w as f32 / h as f32,
+        ),
         width: w,
         height: h,
         seed,
@@ -53,8 +59,8 @@ fn furnace(albedo: f32, le: f32) -> Scene {
     )
     .unwrap();
     scene.camera = Some(runner::scene::CameraHint {
-        eye: Vec3::new(0.3, -0.2, 0.1),
-        target: Vec3::new(1.0, 0.5, -2.0),
+        eye: glam::DVec3::new(0.3, -0.2, 0.1),
+        target: glam::DVec3::new(1.0, 0.5, -2.0),
         up: Vec3::Y,
         fov: 90.0,
     });

@@ -86,7 +86,8 @@ fn merging_two_reservoirs_selects_like_one_over_the_union() {
 
 fn params(scene: &Scene, w: u32, h: u32, seed: u32, max_depth: u32, flags: u32) -> FrameParams {
     let c = scene.camera.expect("scene camera");
-    let cam = look_at(c.eye, c.target, c.up, c.fov, w as f32 / h as f32);
+    let (eye, target) = (c.eye.as_vec3(), c.target.as_vec3());
+    let cam = look_at(eye, target, c.up, c.fov, w as f32 / h as f32);
     FrameParams {
         camera: cam,
         prev_camera: cam,

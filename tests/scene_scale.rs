@@ -179,10 +179,15 @@ fn small_and_far_scenes_render_as_at_unit_scale() {
     let without_camera = |obj: String| obj.lines().skip(1).collect::<Vec<_>>().join("\n");
     // (A box 0.3 across: f32's 0.5 steps there would squash it flat.)
     let unit = without_camera(box_on_floor(0.3, [0.0; 3]));
-    let utm = without_camera(box_on_floor(0.3, [5.0e6 + 0.37, 30.0, 4.0e6 + 0.61]));
+    let offset = [5.0e6 + 0.37, 30.0, 4.0e6 + 0.61];
+    let utm = without_camera(box_on_floor(0.3, offset));
     let want = render("unit_default_ao", &unit, &ao);
     let got = render("utm_ao", &utm, &ao);
     assert_same_picture(&got, &want, 0.97, "georeferenced AO");
+    // With its camera line, read in f64 too (in f32 the eye would be up to 0.25 off).
+    let framed = render("small_cam_ao", &box_on_floor(0.3, [0.0; 3]), &ao);
+    let got = render("utm_cam_ao", &box_on_floor(0.3, offset), &ao);
+    assert_same_picture(&got, &framed, 0.97, "georeferenced AO, the file's camera");
     // The same as a PLY of doubles, as scanners export georeferenced meshes.
     let got = render_ply("utm_ply_ao", &obj_as_ply(&utm), &ao);
     assert_same_picture(&got, &want, 0.97, "georeferenced PLY AO");

@@ -43,10 +43,10 @@ pub fn camera_pose(args: &SceneOptions, scene: &Scene) -> Result<CameraPose> {
     let target = args
         .target
         .or(hint.map(|h| h.target))
-        .map(|p| frame.point(p))
+        .map(|p| frame.position(p))
         .unwrap_or(0.5 * (lo + hi));
     let up = args.up.or(hint.map(|h| h.up)).unwrap_or(args.up_axis.up());
-    let eye = args.eye.or(hint.map(|h| h.eye)).map(|p| frame.point(p));
+    let eye = args.eye.or(hint.map(|h| h.eye)).map(|p| frame.position(p));
     let eye = eye.unwrap_or_else(|| {
         let radius = 0.5 * (hi - lo).length();
         let (az, el) = (

@@ -401,8 +401,8 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                 let forward = world.transform_vector3(-Vec3::Z);
                 let up = world.transform_vector3(Vec3::Y);
                 camera = Some(CameraHint {
-                    eye,
-                    target: eye + forward.normalize_or_zero(),
+                    eye: eye.as_dvec3(),
+                    target: (eye + forward.normalize_or_zero()).as_dvec3(),
                     up,
                     fov: p.yfov().to_degrees(),
                 });

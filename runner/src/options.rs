@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use kernels::types::FrameParams;
 
 use crate::bail;
@@ -47,11 +47,11 @@ pub struct SceneOptions {
     #[arg(long, default_value_t = 512, value_name = "H")]
     pub height: u32,
     /// Camera position [default: the scene's `# camera:` line, else framed from the bounds]
-    #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
-    pub eye: Option<Vec3>,
+    #[arg(long, value_parser = parse_position, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub eye: Option<DVec3>,
     /// Point the camera looks at
-    #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
-    pub target: Option<Vec3>,
+    #[arg(long, value_parser = parse_position, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub target: Option<DVec3>,
     /// Up direction (the top of the image) [default: the scene's `# camera:` line, else
     /// --up-axis]
     #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z", allow_hyphen_values = true)]
@@ -454,16 +454,34 @@ fn restir_flags(kernel: &KernelOptions) -> u32 {
 
 /// Parse "X,Y,Z" into a vector of finite numbers.
 pub fn parse_vec3(s: &str) -> std::result::Result<Vec3, String> {
+    parse_triple::<f32>(s).map(Vec3::from)
+}
+
+/// Parse "X,Y,Z" into a position in a scene file's coordinates: read in f64, as a
+/// georeferenced scene's coordinates need more digits than f32 holds before
+/// `Scene::frame` moves them near the origin; finite as f32.
+pub fn parse_position(s: &str) -> std::result::Result<DVec3, String> {
+    let p = DVec3::from(parse_triple::<f64>(s)?);
+    if !p.as_vec3().is_finite() {
+        return Err(format!("'{s}' is beyond f32's range"));
+    }
+    Ok(p)
+}
+
+/// Three comma-separated finite numbers.
+fn parse_triple<T: std::str::FromStr + Default + Copy + Into<f64>>(
+    s: &str,
+) -> std::result::Result<[T; 3], String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     if parts.len() != 3 {
         return Err(format!("expected X,Y,Z, got '{s}'"));
     }
-    let mut v = [0.0f32; 3];
+    let mut v = [T::default(); 3];
     for (x, p) in v.iter_mut().zip(&parts) {
         *x = p.parse().map_err(|_| format!("'{p}' is not a number"))?;
-        if !x.is_finite() {
+        if !(*x).into().is_finite() {
             return Err(format!("'{p}' is not a finite number"));
         }
     }
-    Ok(Vec3::from(v))
+    Ok(v)
 }

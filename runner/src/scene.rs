@@ -19,8 +19,9 @@ pub const DEFAULT_ALBEDO: f32 = 0.8;
 /// `# camera: eye=X,Y,Z target=X,Y,Z up=X,Y,Z fov=DEG`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CameraHint {
-    pub eye: Vec3,
-    pub target: Vec3,
+    /// Positions in f64, as the file or the flags give them (see `scene_frame`).
+    pub eye: DVec3,
+    pub target: DVec3,
     pub up: Vec3,
     pub fov: f32,
 }
@@ -1341,8 +1342,8 @@ fn parse_camera_hint(name: &str, text: &str) -> Result<Option<CameraHint>> {
     };
     let bad = || Error(format!("{name}:{}: bad camera line '{line}'", n + 1));
     let mut hint = CameraHint {
-        eye: Vec3::ZERO,
-        target: Vec3::Z,
+        eye: DVec3::ZERO,
+        target: DVec3::Z,
         up: Vec3::Y,
         fov: 45.0,
     };
@@ -1351,11 +1352,11 @@ fn parse_camera_hint(name: &str, text: &str) -> Result<Option<CameraHint>> {
         let (k, v) = kv.split_once('=').ok_or_else(bad)?;
         match k {
             "eye" => {
-                (hint.eye, has_eye) = (crate::options::parse_vec3(v).map_err(|_| bad())?, true)
+                (hint.eye, has_eye) = (crate::options::parse_position(v).map_err(|_| bad())?, true)
             }
             "target" => {
                 (hint.target, has_target) =
-                    (crate::options::parse_vec3(v).map_err(|_| bad())?, true)
+                    (crate::options::parse_position(v).map_err(|_| bad())?, true)
             }
             "up" => hint.up = crate::options::parse_vec3(v).map_err(|_| bad())?,
             "fov" => hint.fov = v.parse().map_err(|_| bad())?,

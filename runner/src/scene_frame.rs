@@ -72,7 +72,12 @@ impl SceneFrame {
 
     /// A position in the file's coordinates, in the kernels'.
     pub fn point(&self, p: Vec3) -> Vec3 {
-        ((p.as_dvec3() - self.centre) * self.scale as f64).as_vec3()
+        self.position(p.as_dvec3())
+    }
+
+    /// A position in the file's coordinates read in f64 (a camera's), in the kernels'.
+    pub fn position(&self, p: DVec3) -> Vec3 {
+        ((p - self.centre) * self.scale as f64).as_vec3()
     }
 
     /// A length in the file's units, in the kernels'.
