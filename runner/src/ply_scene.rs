@@ -119,12 +119,9 @@ pub fn parse_ply_bytes(name: &str, bytes: Vec<u8>) -> Result<Scene> {
         }
     }
     // Far from the origin (georeferenced scans in f64): moved there before the rounding.
-    let (lo, hi) = positions
-        .iter()
-        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
-            (lo.min(p), hi.max(p))
-        });
-    let centre = crate::scene_frame::far_centre(lo, hi);
+    // The box only decides whether to move (f32 precision, as for OBJ's `check_lines`).
+    let (lo, hi) = crate::scene::bounds_of(positions.iter().map(|p| p.as_vec3()));
+    let centre = crate::scene_frame::far_centre(lo.as_dvec3(), hi.as_dvec3());
     let positions: Vec<Vec3> = positions.iter().map(|&p| (p - centre).as_vec3()).collect();
     let has_normals = !normals.is_empty() && normals.len() == positions.len();
     let has_colours = !colours.is_empty() && colours.len() == positions.len();

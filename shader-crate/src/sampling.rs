@@ -18,6 +18,12 @@ pub fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
 /// Local frame (z = n) to world.
 pub fn local_to_world(local: Vec3, n: Vec3) -> Vec3 {
     let (t, b) = orthonormal_basis(n);
+    in_frame(local, [t, b, n])
+}
+
+/// `local` (x along t, y along b, z along n) in world space, for a frame made once and
+/// kept (`orthonormal_basis`'s tangents with n).
+pub fn in_frame(local: Vec3, [t, b, n]: [Vec3; 3]) -> Vec3 {
     t * local.x + b * local.y + n * local.z
 }
 

@@ -13,7 +13,7 @@ use crate::integrators::{accumulate_samples, camera_sample, PixelResult};
 use crate::intersect::Ray;
 use crate::math::Divisor;
 use crate::rng::{keyed_pair, Rng};
-use crate::sampling::{cosine_hemisphere, orthonormal_basis, Strata};
+use crate::sampling::{cosine_hemisphere, in_frame, orthonormal_basis, Strata};
 use crate::types::{decode_unit, encode_unit, FrameParams, AO_INDEPENDENT, INVALID};
 
 /// The AO rays of one surface point: where they start, the triangle they leave, the frame
@@ -64,9 +64,7 @@ impl AoRays {
     pub fn ray(&self, k: u32, strata: Strata) -> Ray {
         let (j1, j2) = keyed_pair(self.key, k);
         let (u1, u2) = strata.point(k, j1, j2);
-        let d = cosine_hemisphere(u1, u2);
-        let [t, b, n] = self.frame;
-        Ray::new(self.origin, t * d.x + b * d.y + n * d.z)
+        Ray::new(self.origin, in_frame(cosine_hemisphere(u1, u2), self.frame))
     }
 }
 
