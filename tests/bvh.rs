@@ -5,12 +5,13 @@ mod common;
 
 use common::{closed_box, icosphere};
 use glam::{UVec4, Vec3};
+use kernels::bundle::{cwbvh_occluded, BUNDLE_RAYS};
 use kernels::bvh::{
     brute_force_any_hit, brute_force_closest_hit, bvh2_traverse, cwbvh_traverse, Cutouts,
 };
 use kernels::intersect::{Hit, Ray};
 use kernels::rng::Rng;
-use kernels::types::{CwBvhNode, CwBvhPlanes, Material, Triangle};
+use kernels::types::{CwBvhNode, CwBvhPlanes, Material, Triangle, INVALID};
 use runner::accel::{build_bvh2, build_cwbvh, reorder, BvhQuality};
 use runner::scene::default_scene_path;
 
@@ -188,6 +189,60 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
     }
     // The probe must actually exercise hits, not only misses.
     assert!(hits > rays / 4, "only {hits} of {rays} rays hit");
+    bundles_agree_with_brute_force(tris, tc, &decoded, lo, hi, rays / 16, seed);
+}
+
+/// Bundles of rays from one point (the CPU's AO, `bundle::cwbvh_occluded`): each ray's bit
+/// is its own any-hit answer, for bundles of every size up to 64, axis-parallel rays among
+/// them, and limits from zero to beyond the scene.
+fn bundles_agree_with_brute_force(
+    tris: &[Triangle],
+    leaf_order: &[UVec4],
+    decoded: &[UVec4],
+    lo: Vec3,
+    hi: Vec3,
+    bundles: u32,
+    seed: u32,
+) {
+    let words: &[UVec4] = bytemuck::cast_slice(tris);
+    let mut rng = Rng::from_seed(seed ^ 0xb0d1e);
+    let (mut blocked, mut open) = (0, 0);
+    for b in 0..bundles.max(8) {
+        let origin = make_ray(b, tris, lo, hi, &mut rng).origin;
+        let n = 1 + (rng.next_u32() % BUNDLE_RAYS as u32) as usize;
+        let rays: Vec<Ray> = (0..n)
+            .map(|k| {
+                let mut d = uniform_dir(&mut rng);
+                if k % 9 == 4 {
+                    d = Vec3::ZERO;
+                    d[k % 3] = if k % 2 == 0 { 1.0 } else { -1.0 };
+                }
+                Ray::new(origin, d)
+            })
+            .collect();
+        let limit = match b % 3 {
+            0 => f32::INFINITY,
+            _ => (hi - lo).length() * rng.next_f32() * rng.next_f32(),
+        };
+        let got =
+            cwbvh_occluded::<false>(leaf_order, &Cutouts::NONE, decoded, &rays, INVALID, limit);
+        for (k, ray) in rays.iter().enumerate() {
+            let want = brute_force_any_hit(words, &Cutouts::NONE, ray, limit);
+            assert_eq!(
+                got >> k & 1 == 1,
+                want,
+                "bundle ray {k} of {n}: {ray:?} to {limit}"
+            );
+            blocked += want as u32;
+            open += !want as u32;
+        }
+        assert_eq!(
+            got.checked_shr(n as u32).unwrap_or(0),
+            0,
+            "bits beyond the bundle's {n} rays"
+        );
+    }
+    assert!(blocked > 0 && open > 0, "{blocked} blocked, {open} open");
 }
 
 #[test]

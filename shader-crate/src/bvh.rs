@@ -120,7 +120,7 @@ impl Cutouts<'_> {
     };
 
     /// Whether a hit at barycentrics (b1, b2) of `tri` is on the surface, not in a hole.
-    fn solid(&self, tri: &Triangle, b1: f32, b2: f32) -> bool {
+    pub(crate) fn solid(&self, tri: &Triangle, b1: f32, b2: f32) -> bool {
         if !tri.alpha_tested() {
             return true;
         }
@@ -235,6 +235,33 @@ impl<'a> SceneBuffers<'a> {
             if !self.any_hit::<PLAIN>(&pool.ray(index).0, t_max) {
                 pool.escaped(index);
             }
+        }
+    }
+
+    /// Which of `rays` (at most `bundle::BUNDLE_RAYS`, all from one point, leaving triangle
+    /// `leaves` or `INVALID`) meet something before `t_max`: bit k for ray k. The CPU's
+    /// ambient occlusion (see `bundle`); each bit is `any_hit` of its ray.
+    #[cfg(not(target_arch = "spirv"))]
+    pub fn occluded_bundle<const PLAIN: bool>(&self, rays: &[Ray], leaves: u32, t_max: f32) -> u64 {
+        #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
+        return crate::bundle::cwbvh_occluded::<PLAIN>(
+            self.triangles,
+            &self.cutouts(),
+            self.nodes,
+            rays,
+            leaves,
+            t_max,
+        );
+        #[cfg(any(feature = "traversal-bvh2", feature = "traversal-brute-force"))]
+        {
+            let _ = leaves;
+            let mut occluded = 0;
+            for (k, ray) in rays.iter().take(crate::bundle::BUNDLE_RAYS).enumerate() {
+                if self.any_hit::<PLAIN>(ray, t_max) {
+                    occluded |= 1 << k;
+                }
+            }
+            occluded
         }
     }
 
@@ -391,9 +418,11 @@ pub mod stats {
 macro_rules! count {
     ($counter:ident) => {
         #[cfg(all(feature = "traversal-stats", not(target_arch = "spirv")))]
-        stats::$counter.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
+        crate::bvh::stats::$counter.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
     };
 }
+#[cfg(not(target_arch = "spirv"))]
+pub(crate) use count;
 
 /// Test triangles `first .. first + count` against the ray, shrinking `hit.t`.
 /// Returns true when `any` is set and something was hit (the caller stops).
@@ -502,7 +531,7 @@ pub fn cwbvh_octant_inv(dir: Vec3) -> u32 {
 
 /// 1/d per component, with ±2^63 where d is too small to invert: finite slopes keep the
 /// quantised slab test free of 0·∞ = NaN for axis-parallel rays.
-fn safe_recip(d: Vec3) -> Vec3 {
+pub(crate) fn safe_recip(d: Vec3) -> Vec3 {
     let r = |x: f32| {
         if x > 1e-18 || x < -1e-18 {
             1.0 / x
@@ -629,6 +658,20 @@ fn cwbvh_half_hits_decoded(
     y: (Vec4, Vec4),
     z: (Vec4, Vec4),
 ) -> u32 {
+    let hit = decoded_slab_hits(ray, x, y, z);
+    let mut mask = 0u32;
+    let mut k = 0u32;
+    while k < 4 {
+        mask |= child_bits(ray, (meta4 >> (8 * k)) & 0xff) & 0u32.wrapping_sub((hit >> k) & 1);
+        k += 1;
+    }
+    mask
+}
+
+/// Which of the 4 children with decoded planes `x`, `y`, `z` (min, max) the ray enters
+/// within its t range: bit k for child k. The four slab tests side by side in `Vec4`s.
+#[inline(always)]
+fn decoded_slab_hits(ray: &NodeRay, x: (Vec4, Vec4), y: (Vec4, Vec4), z: (Vec4, Vec4)) -> u32 {
     let (nx, fx) = near_far(x.0, x.1, ray.negative[0]);
     let (ny, fy) = near_far(y.0, y.1, ray.negative[1]);
     let (nz, fz) = near_far(z.0, z.1, ray.negative[2]);
@@ -642,14 +685,22 @@ fn cwbvh_half_hits_decoded(
         .min(t(fy, s.y, o.y))
         .min(t(fz, s.z, o.z))
         .min(Vec4::splat(ray.t_max));
-    let hit = t_near.cmple(t_far).bitmask();
-    let mut mask = 0u32;
-    let mut k = 0u32;
-    while k < 4 {
-        mask |= child_bits(ray, (meta4 >> (8 * k)) & 0xff) & 0u32.wrapping_sub((hit >> k) & 1);
-        k += 1;
+    t_near.cmple(t_far).bitmask()
+}
+
+impl CwBvhPlanes {
+    /// Which of the node's 8 slots' boxes the ray enters before `t_max`: bit k for slot k
+    /// (empty slots included: mask them with their meta bytes). The same slab tests as
+    /// [`WideNode::hits`], without turning the hits into traversal bits.
+    #[inline(always)]
+    pub fn slot_hits(&self, origin: Vec3, inv_dir: Vec3, t_max: f32) -> u32 {
+        let ray = NodeRay::new(self.p, Vec3::ONE, origin, inv_dir, 0, t_max);
+        let (m, n) = (self.child_min_x, self.child_max_x);
+        let (k, l) = (self.child_min_y, self.child_max_y);
+        let (i, j) = (self.child_min_z, self.child_max_z);
+        decoded_slab_hits(&ray, (m[0], n[0]), (k[0], l[0]), (i[0], j[0]))
+            | decoded_slab_hits(&ray, (m[1], n[1]), (k[1], l[1]), (i[1], j[1])) << 4
     }
-    mask
 }
 
 /// A CWBVH node as a traversal reads it: obvhs's 80-byte node ([`CwBvhNode`]) or the same

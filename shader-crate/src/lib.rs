@@ -7,6 +7,8 @@
 
 pub mod bindings;
 pub mod bsdf;
+#[cfg(not(target_arch = "spirv"))]
+pub mod bundle;
 pub mod bvh;
 pub mod camera;
 pub mod env;

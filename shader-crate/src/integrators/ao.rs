@@ -1,15 +1,21 @@
 //! Ambient occlusion, the course's first integrator: the fraction of cosine-weighted
 //! directions around a visible point that escape within `ao_distance`.
 //!
-//! The CPU backend runs a pixel at a time (`render_pixel`). The GPU runs a workgroup at a
-//! time (`render_group_pixel`): its threads trace their camera rays, put the AO rays of
-//! every hit into one pool in workgroup memory, and all take rays from that pool until it
-//! is empty. A thread whose pixel saw the sky, or whose rays were short, then traces rays
-//! of its neighbours instead of idling while its warp finishes theirs. Each ray is a pure
-//! function of (pixel, sample, ray index), so both give the same pixels.
+//! The CPU backend runs a pixel at a time (`render_pixel`), its point's rays traced
+//! together in bundles (`bundle`). The GPU runs a workgroup at a time
+//! (`render_group_pixel`): its threads trace their camera rays, put the AO rays of every
+//! hit into one pool in workgroup memory, and all take rays from that pool until it is
+//! empty. A thread whose pixel saw the sky, or whose rays were short, then traces rays of
+//! its neighbours instead of idling while its warp finishes theirs. Each ray is a pure
+//! function of (pixel, sample, ray index) and each one's answer does not depend on how it
+//! is traced, so both give the same pixels.
+#[cfg(not(target_arch = "spirv"))]
+use crate::bundle::BUNDLE_RAYS;
 use crate::bvh::{offset_ray_origin, surface_hit, RayPool, SceneBuffers};
 use crate::glam::Vec3;
-use crate::integrators::{accumulate_samples, camera_sample, PixelResult};
+#[cfg(not(target_arch = "spirv"))]
+use crate::integrators::accumulate_samples;
+use crate::integrators::{camera_sample, PixelResult};
 use crate::intersect::Ray;
 use crate::math::Divisor;
 use crate::rng::{keyed_pair, Rng};
@@ -68,36 +74,13 @@ impl AoRays {
     }
 }
 
-/// One point's `count` rays as a pool, the escaped ones counted.
-struct PointPool {
-    rays: AoRays,
-    strata: Strata,
-    count: u32,
-    next: u32,
-    open: u32,
-}
-
-impl RayPool for PointPool {
-    fn take(&mut self) -> u32 {
-        if self.next == self.count {
-            return INVALID;
-        }
-        self.next += 1;
-        self.next - 1
-    }
-
-    fn ray(&self, index: u32) -> (Ray, u32) {
-        (self.rays.ray(index, self.strata), self.rays.prim)
-    }
-
-    fn escaped(&mut self, _index: u32) {
-        self.open += 1;
-    }
-}
-
 /// Unoccluded fraction at the point of `point`'s rays, from `rays` of them, of length
 /// `distance`, spread over the hemisphere by `strata`. Cosine weighting makes this the
 /// cosine-weighted visibility integral (1/π) ∫ V(ω) cos θ dω estimated with equal weights.
+/// The CPU's: the rays go through the BVH in bundles of 64 from the point
+/// (`bundle::cwbvh_occluded`); the GPU traces the same rays one per thread from its
+/// workgroup's pool (`render_group_pixel`), with the same answer for each.
+#[cfg(not(target_arch = "spirv"))]
 pub fn ambient_occlusion<const PLAIN: bool>(
     scene: &SceneBuffers,
     point: AoRays,
@@ -105,15 +88,19 @@ pub fn ambient_occlusion<const PLAIN: bool>(
     strata: Strata,
     distance: f32,
 ) -> f32 {
-    let mut pool = PointPool {
-        rays: point,
-        strata,
-        count: rays,
-        next: 0,
-        open: 0,
-    };
-    scene.trace_pool::<PLAIN, _>(&mut pool, distance);
-    pool.open as f32 / rays.max(1) as f32
+    let mut bundle = [Ray::new(point.origin, point.frame[2]); BUNDLE_RAYS];
+    let mut open = 0;
+    let mut first = 0;
+    while first < rays {
+        let n = (rays - first).min(BUNDLE_RAYS as u32);
+        for (k, ray) in bundle[..n as usize].iter_mut().enumerate() {
+            *ray = point.ray(first + k as u32, strata);
+        }
+        let occluded = scene.occluded_bundle::<PLAIN>(&bundle[..n as usize], point.prim, distance);
+        open += n - occluded.count_ones();
+        first += n;
+    }
+    open as f32 / rays.max(1) as f32
 }
 
 /// The strata of `params`' AO rays.
@@ -138,6 +125,7 @@ fn camera_hit<const PLAIN: bool>(scene: &SceneBuffers, ray: &Ray) -> Option<(Vec
 
 /// One AO sample for a camera ray: 0 where the ray leaves the scene (no surface, no
 /// occlusion to speak of), the unoccluded fraction (grey) where it hits.
+#[cfg(not(target_arch = "spirv"))]
 pub fn ao_sample<const PLAIN: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,
@@ -160,6 +148,7 @@ pub fn ao_sample<const PLAIN: bool>(
 }
 
 /// `PLAIN`: the scene has no cut-outs (the plain-scene variant; see `bvh::closest_hit`).
+#[cfg(not(target_arch = "spirv"))]
 pub fn render_pixel<const PLAIN: bool>(
     scene: &SceneBuffers,
     params: &FrameParams,

@@ -1,0 +1,212 @@
+//! Occlusion of a bundle of rays from one point, traced together (the CPU backend's
+//! ambient occlusion). A point's AO rays all start where the point is, so they visit the
+//! same nodes around it (half or more of their node visits, README "Benchmark suite") and
+//! part of the way out. Walked one at a time, each ray's node test waits on the load of
+//! the node it chose before; walked together, a node is read once for all the rays of the
+//! bundle that enter it, while the next one is fetched, and those rays' tests of it are
+//! independent of each other, which the CPU runs side by side. The GPU keeps one ray per
+//! thread (`SceneBuffers::trace_pool`).
+//!
+//! The answer is the same as each ray's own any-hit walk: whether a ray meets a solid
+//! triangle before its end does not depend on the order the triangles are tried in. Only
+//! the number of node visits differs (an occluded ray may be carried into nodes a
+//! front-to-back walk would have stopped before).
+use crate::bvh::{count, cwbvh_traverse, safe_recip, Cutouts, CWBVH_STACK};
+use crate::glam::{UVec4, Vec3};
+use crate::intersect::{Ray, TriangleTester};
+use crate::types::cwbvh_meta;
+use crate::types::{CwBvhPlanes, Triangle};
+
+/// Rays in one bundle: one bit each of a `u64` mask.
+pub const BUNDLE_RAYS: usize = 64;
+
+/// Nodes waiting in a bundle walk: every child entered is pushed (with the rays that
+/// entered it), at most 7 waiting siblings per level of a tree of at most `CWBVH_STACK`
+/// levels, and the root.
+const BUNDLE_STACK: usize = 7 * CWBVH_STACK + 1;
+
+/// The bits of the first `n` rays.
+fn first_rays(n: usize) -> u64 {
+    if n >= BUNDLE_RAYS {
+        u64::MAX
+    } else {
+        (1u64 << n) - 1
+    }
+}
+
+/// Which of `rays` (at most `BUNDLE_RAYS`, all from one origin) meet a solid triangle
+/// before `t_max`, as bit k for ray k, over a CWBVH of decoded nodes (the CPU's
+/// `TraversalNode`). Triangle `leaves` (the one the rays leave from, or `INVALID`) is never
+/// tested, as in `CwbvhWalk`.
+pub fn cwbvh_occluded<const PLAIN: bool>(
+    triangles: &[UVec4],
+    cutouts: &Cutouts,
+    nodes: &[UVec4],
+    rays: &[Ray],
+    leaves: u32,
+    t_max: f32,
+) -> u64 {
+    let n = rays.len().min(BUNDLE_RAYS);
+    let all = first_rays(n);
+    if nodes.is_empty() || n == 0 {
+        return 0;
+    }
+    let origin = rays[0].origin;
+    debug_assert!(rays[..n].iter().all(|r| r.origin == origin), "one origin");
+    let mut inv_dir = [Vec3::ZERO; BUNDLE_RAYS];
+    let mut testers = [TriangleTester::new(&rays[0]); BUNDLE_RAYS];
+    for (k, ray) in rays[..n].iter().enumerate() {
+        count!(TRAVERSALS);
+        inv_dir[k] = safe_recip(ray.dir);
+        testers[k] = TriangleTester::new(ray);
+    }
+    let mut occluded = 0u64;
+    let mut stack = [(0u32, 0u64); BUNDLE_STACK];
+    stack[0] = (0, all);
+    let mut sp = 1;
+    while sp > 0 {
+        sp -= 1;
+        let (index, entered) = stack[sp];
+        let mut open = entered & !occluded;
+        if open == 0 {
+            continue;
+        }
+        let node = CwBvhPlanes::read(nodes, index);
+        // The next node's load starts now, behind this node's tests of every ray.
+        if sp > 0 {
+            prefetch(
+                nodes,
+                stack[sp - 1].0 as usize * CwBvhPlanes::WORDS,
+                CwBvhPlanes::WORDS,
+            );
+        }
+        // Each ray's slab tests, turned around into the rays that enter each slot.
+        let meta = |slot: usize| (node.child_meta[slot / 4] >> (8 * (slot % 4))) & 0xff;
+        let filled = (0..8).fold(0u32, |f, slot| f | ((meta(slot) != 0) as u32) << slot);
+        let mut ray_slots = [0u8; BUNDLE_RAYS];
+        while open != 0 {
+            let k = open.trailing_zeros() as usize;
+            open &= open - 1;
+            // Counted per ray, as its own walk (and the GPU's) visits the node.
+            count!(NODES);
+            ray_slots[k] = (node.slot_hits(origin, inv_dir[k], t_max) & filled) as u8;
+        }
+        let slot_rays = transpose(&ray_slots);
+        // Leaves first: a ray found blocked there enters none of the nodes below.
+        for (slot, &entered) in slot_rays.iter().enumerate() {
+            let m = meta(slot);
+            if entered == 0 || cwbvh_meta::is_interior(m) {
+                continue;
+            }
+            let first = node.primitive_base_idx + cwbvh_meta::index(m);
+            for prim in first..first + cwbvh_meta::triangle_bits(m).count_ones() {
+                let mut open = entered & !occluded;
+                if open == 0 || prim == leaves {
+                    continue;
+                }
+                let tri = Triangle::read(triangles, prim);
+                while open != 0 {
+                    let k = open.trailing_zeros() as usize;
+                    open &= open - 1;
+                    count!(TRIANGLES);
+                    if let Some((_, b1, b2)) = testers[k].intersect(&tri, 0.0, t_max) {
+                        if PLAIN || cutouts.solid(&tri, b1, b2) {
+                            occluded |= 1u64 << k;
+                        }
+                    }
+                }
+            }
+        }
+        if occluded & all == all {
+            return all;
+        }
+        // Interior children are stored in slot order from the child base.
+        for (slot, &entered) in slot_rays.iter().enumerate() {
+            if entered == 0 || !cwbvh_meta::is_interior(meta(slot)) {
+                continue;
+            }
+            let child = node.child_base_idx + (node.imask & ((1u32 << slot) - 1)).count_ones();
+            if sp == BUNDLE_STACK {
+                // Deeper than the host ever builds (`CWBVH_STACK` levels): the rays not yet
+                // decided walk one at a time instead.
+                let rest = all & !occluded;
+                return occluded
+                    | one_at_a_time::<PLAIN>(triangles, cutouts, nodes, rays, rest, t_max);
+            }
+            stack[sp] = (child, entered);
+            sp += 1;
+        }
+    }
+    occluded
+}
+
+/// The rays of each slot (bit k of entry s: ray k entered slot s) from the slots of each
+/// ray (bit s of entry k): an 8 × 64 bit-matrix transpose, without a branch per bit.
+#[inline(always)]
+fn transpose(ray_slots: &[u8; BUNDLE_RAYS]) -> [u64; 8] {
+    let mut slot_rays = [0u64; 8];
+    #[cfg(target_arch = "x86_64")]
+    {
+        use core::arch::x86_64::*;
+        // 16 rays at a time: shifting each 16-bit lane left by 7 − s puts bit s of both its
+        // bytes at their top bits, which movemask gathers, one bit per ray.
+        for (group, rays) in ray_slots.as_chunks::<16>().0.iter().enumerate() {
+            // SAFETY: SSE2 is part of x86-64; the load reads the 16 bytes of `rays`.
+            unsafe {
+                let v = _mm_loadu_si128(rays.as_ptr() as *const __m128i);
+                for (slot, out) in slot_rays.iter_mut().enumerate() {
+                    let top = _mm_sll_epi16(v, _mm_cvtsi32_si128(7 - slot as i32));
+                    *out |= (_mm_movemask_epi8(top) as u32 as u64) << (16 * group);
+                }
+            }
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    for (k, &slots) in ray_slots.iter().enumerate() {
+        for (slot, out) in slot_rays.iter_mut().enumerate() {
+            *out |= (((slots >> slot) & 1) as u64) << k;
+        }
+    }
+    slot_rays
+}
+
+/// Ask the CPU to bring `count` words from word `first` of `words` into its cache.
+#[inline(always)]
+fn prefetch(words: &[UVec4], first: usize, count: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        // Four 16-byte words to a 64-byte cache line.
+        let mut k = first;
+        while k < (first + count).min(words.len()) {
+            // SAFETY: k is inside `words`; a prefetch reads nothing the program sees.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(words.as_ptr().add(k) as *const i8) };
+            k += 4;
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (words, first, count);
+}
+
+/// The rays of mask `open` walked one at a time from the root (`bvh::cwbvh_traverse`; it
+/// tests the triangle they leave too, which they cannot meet).
+fn one_at_a_time<const PLAIN: bool>(
+    triangles: &[UVec4],
+    cutouts: &Cutouts,
+    nodes: &[UVec4],
+    rays: &[Ray],
+    mut open: u64,
+    t_max: f32,
+) -> u64 {
+    let mut occluded = 0u64;
+    while open != 0 {
+        let k = open.trailing_zeros() as usize;
+        open &= open - 1;
+        let hit =
+            cwbvh_traverse::<PLAIN, CwBvhPlanes>(triangles, cutouts, nodes, &rays[k], t_max, true);
+        if hit.is_hit() {
+            occluded |= 1u64 << k;
+        }
+    }
+    occluded
+}
