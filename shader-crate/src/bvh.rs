@@ -396,7 +396,8 @@ pub fn brute_force_any_hit(triangles: &[UVec4], cutouts: &Cutouts, ray: &Ray, t_
 
 /// What the traversal did, counted on the host under the `traversal-stats` feature (never
 /// in SPIR-V: kernels read no globals). The CPU backend runs the GPU's traversal over the
-/// same BVH, so its counts per ray describe the GPU's work too.
+/// same BVH, so its counts per ray describe the GPU's work too; its AO bundles (`bundle`)
+/// count each ray's node tests, as the ray's own walk would visit those nodes.
 #[cfg(all(feature = "traversal-stats", not(target_arch = "spirv")))]
 pub mod stats {
     use core::sync::atomic::{AtomicU64, Ordering::Relaxed};
