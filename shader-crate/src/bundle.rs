@@ -60,6 +60,7 @@ pub fn cwbvh_occluded<const PLAIN: bool>(
         inv_dir[k] = safe_recip(ray.dir);
         testers[k] = TriangleTester::new(ray);
     }
+    let lanes = RayLanes::new(&inv_dir);
     let mut occluded = 0u64;
     let mut stack = [(0u32, 0u64); BUNDLE_STACK];
     stack[0] = (0, all);
@@ -83,15 +84,19 @@ pub fn cwbvh_occluded<const PLAIN: bool>(
         // Each ray's slab tests, turned around into the rays that enter each slot.
         let meta = |slot: usize| (node.child_meta[slot / 4] >> (8 * (slot % 4))) & 0xff;
         let filled = (0..8).fold(0u32, |f, slot| f | ((meta(slot) != 0) as u32) << slot);
-        let mut ray_slots = [0u8; BUNDLE_RAYS];
-        while open != 0 {
-            let k = open.trailing_zeros() as usize;
-            open &= open - 1;
-            // Counted per ray, as its own walk (and the GPU's) visits the node.
-            count!(NODES);
-            ray_slots[k] = (node.slot_hits(origin, inv_dir[k], t_max) & filled) as u8;
-        }
-        let slot_rays = transpose(&ray_slots);
+        let slot_rays = if let Some(rays) = lanes.slot_rays(&node, origin, open, filled, t_max) {
+            rays
+        } else {
+            let mut ray_slots = [0u8; BUNDLE_RAYS];
+            while open != 0 {
+                let k = open.trailing_zeros() as usize;
+                open &= open - 1;
+                // Counted per ray, as its own walk (and the GPU's) visits the node.
+                count!(NODES);
+                ray_slots[k] = (node.slot_hits(origin, inv_dir[k], t_max) & filled) as u8;
+            }
+            transpose(&ray_slots)
+        };
         // Leaves first: a ray found blocked there enters none of the nodes below.
         for (slot, &entered) in slot_rays.iter().enumerate() {
             let m = meta(slot);
@@ -138,6 +143,142 @@ pub fn cwbvh_occluded<const PLAIN: bool>(
         }
     }
     occluded
+}
+
+/// Nodes entered by at least this many rays are tested a slot at a time for 8 rays at once
+/// (`RayLanes`); fewer rays, each ray against the 8 slots.
+const DENSE_RAYS: u32 = 16;
+
+/// The bundle's reciprocal directions by axis, for testing one slot against 8 rays in an
+/// AVX register. Where the CPU has no AVX, `slot_rays` declines and the bundle tests a ray
+/// at a time.
+struct RayLanes {
+    avx: bool,
+    inv: [[f32; BUNDLE_RAYS]; 3],
+}
+
+impl RayLanes {
+    fn new(inv_dir: &[Vec3; BUNDLE_RAYS]) -> Self {
+        let mut inv = [[0.0; BUNDLE_RAYS]; 3];
+        for (k, d) in inv_dir.iter().enumerate() {
+            inv[0][k] = d.x;
+            inv[1][k] = d.y;
+            inv[2][k] = d.z;
+        }
+        Self {
+            #[cfg(target_arch = "x86_64")]
+            avx: std::is_x86_feature_detected!("avx"),
+            #[cfg(not(target_arch = "x86_64"))]
+            avx: false,
+            inv,
+        }
+    }
+
+    /// The rays of `open` that enter each slot of `filled`, for a node that at least
+    /// `DENSE_RAYS` of them entered; None where that is not this test's case.
+    #[inline(always)]
+    fn slot_rays(
+        &self,
+        node: &CwBvhPlanes,
+        origin: Vec3,
+        open: u64,
+        filled: u32,
+        t_max: f32,
+    ) -> Option<[u64; 8]> {
+        if !self.avx || open.count_ones() < DENSE_RAYS {
+            return None;
+        }
+        #[cfg(target_arch = "x86_64")]
+        {
+            for _ in 0..open.count_ones() {
+                count!(NODES);
+            }
+            // SAFETY: the CPU has AVX (checked in `new`).
+            Some(unsafe { self.slot_rays_avx(node, origin, open, filled, t_max) })
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        None
+    }
+
+    /// `slot_rays` 8 rays at a time: the same operations on the same numbers as
+    /// `CwBvhPlanes::slot_hits` (t = plane · (1/d) + (p − o) · (1/d), no fused multiply-add;
+    /// max and min with the same operand order), so the same hits to the bit.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn slot_rays_avx(
+        &self,
+        node: &CwBvhPlanes,
+        origin: Vec3,
+        open: u64,
+        filled: u32,
+        t_max: f32,
+    ) -> [u64; 8] {
+        use core::arch::x86_64::*;
+        let rel = crate::math::vec3(node.p) - origin;
+        let plane = |planes: &[crate::glam::Vec4; 2], slot: usize| planes[slot / 4][slot % 4];
+        let mut slot_rays = [0u64; 8];
+        for group in 0..BUNDLE_RAYS / 8 {
+            let active = (open >> (8 * group)) & 0xff;
+            if active == 0 {
+                continue;
+            }
+            let load = |axis: usize| _mm256_loadu_ps(self.inv[axis][8 * group..].as_ptr());
+            let (ix, iy, iz) = (load(0), load(1), load(2));
+            let zero = _mm256_setzero_ps();
+            let (nx, ny, nz) = (
+                _mm256_cmp_ps::<_CMP_LT_OQ>(ix, zero),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(iy, zero),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(iz, zero),
+            );
+            let (ox, oy, oz) = (
+                _mm256_mul_ps(_mm256_set1_ps(rel.x), ix),
+                _mm256_mul_ps(_mm256_set1_ps(rel.y), iy),
+                _mm256_mul_ps(_mm256_set1_ps(rel.z), iz),
+            );
+            let limit = _mm256_set1_ps(t_max);
+            let mut slots = filled;
+            while slots != 0 {
+                let slot = slots.trailing_zeros() as usize;
+                slots &= slots - 1;
+                // One axis: the entry and exit t of every lane, by its direction's sign.
+                let axis = |lo: f32, hi: f32, negative, inv, offset| {
+                    let (lo, hi) = (_mm256_set1_ps(lo), _mm256_set1_ps(hi));
+                    let near = _mm256_blendv_ps(lo, hi, negative);
+                    let far = _mm256_blendv_ps(hi, lo, negative);
+                    (
+                        _mm256_add_ps(_mm256_mul_ps(near, inv), offset),
+                        _mm256_add_ps(_mm256_mul_ps(far, inv), offset),
+                    )
+                };
+                let (x0, x1) = axis(
+                    plane(&node.child_min_x, slot),
+                    plane(&node.child_max_x, slot),
+                    nx,
+                    ix,
+                    ox,
+                );
+                let (y0, y1) = axis(
+                    plane(&node.child_min_y, slot),
+                    plane(&node.child_max_y, slot),
+                    ny,
+                    iy,
+                    oy,
+                );
+                let (z0, z1) = axis(
+                    plane(&node.child_min_z, slot),
+                    plane(&node.child_max_z, slot),
+                    nz,
+                    iz,
+                    oz,
+                );
+                let t_near = _mm256_max_ps(_mm256_max_ps(_mm256_max_ps(x0, y0), z0), zero);
+                let t_far = _mm256_min_ps(_mm256_min_ps(_mm256_min_ps(x1, y1), z1), limit);
+                let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(t_near, t_far)) as u64;
+                slot_rays[slot] |= (hit & active) << (8 * group);
+            }
+        }
+        slot_rays
+    }
 }
 
 /// The rays of each slot (bit k of entry s: ray k entered slot s) from the slots of each
