@@ -114,10 +114,11 @@ pub fn cwbvh_occluded<const PLAIN: bool>(
                     let k = open.trailing_zeros() as usize;
                     open &= open - 1;
                     count!(TRIANGLES);
-                    if let Some((_, b1, b2)) = testers[k].intersect(&tri, 0.0, t_max) {
-                        if PLAIN || cutouts.solid(&tri, b1, b2) {
-                            occluded |= 1u64 << k;
-                        }
+                    if cutouts
+                        .solid_hit::<PLAIN>(&testers[k], &tri, t_max)
+                        .is_some()
+                    {
+                        occluded |= 1u64 << k;
                     }
                 }
             }

@@ -119,8 +119,25 @@ impl Cutouts<'_> {
         texels: &[],
     };
 
+    /// Where `tester`'s ray meets `tri` before `t_max` on its surface, not in a hole: (t,
+    /// b1, b2). `PLAIN` promises a scene without cut-outs (no mask is read).
+    #[inline(always)]
+    pub(crate) fn solid_hit<const PLAIN: bool>(
+        &self,
+        tester: &TriangleTester,
+        tri: &Triangle,
+        t_max: f32,
+    ) -> Option<(f32, f32, f32)> {
+        let (t, b1, b2) = tester.intersect(tri, 0.0, t_max)?;
+        if PLAIN || self.solid(tri, b1, b2) {
+            Some((t, b1, b2))
+        } else {
+            None
+        }
+    }
+
     /// Whether a hit at barycentrics (b1, b2) of `tri` is on the surface, not in a hole.
-    pub(crate) fn solid(&self, tri: &Triangle, b1: f32, b2: f32) -> bool {
+    fn solid(&self, tri: &Triangle, b1: f32, b2: f32) -> bool {
         if !tri.alpha_tested() {
             return true;
         }
@@ -361,11 +378,7 @@ pub fn brute_force_closest_hit(
     let mut i = 0;
     while i < triangles.len() / Triangle::WORDS {
         let tri = Triangle::read(triangles, i as u32);
-        if let Some((t, b1, b2)) = tester.intersect(&tri, 0.0, hit.t) {
-            if !cutouts.solid(&tri, b1, b2) {
-                i += 1;
-                continue;
-            }
+        if let Some((t, b1, b2)) = cutouts.solid_hit::<false>(&tester, &tri, hit.t) {
             hit = Hit {
                 t,
                 b1,
@@ -384,10 +397,8 @@ pub fn brute_force_any_hit(triangles: &[UVec4], cutouts: &Cutouts, ray: &Ray, t_
     let mut i = 0;
     while i < triangles.len() / Triangle::WORDS {
         let tri = Triangle::read(triangles, i as u32);
-        if let Some((_, b1, b2)) = tester.intersect(&tri, 0.0, t_max) {
-            if cutouts.solid(&tri, b1, b2) {
-                return true;
-            }
+        if cutouts.solid_hit::<false>(&tester, &tri, t_max).is_some() {
+            return true;
         }
         i += 1;
     }
@@ -440,6 +451,8 @@ fn test_leaf<const PLAIN: bool>(
     while i < first + count {
         count!(TRIANGLES);
         let tri = Triangle::read(triangles, i);
+        // Written out rather than through `Cutouts::solid_hit`: that call changes the
+        // SPIR-V of every traversal, which no device was lent to measure.
         if let Some((t, b1, b2)) = tester.intersect(&tri, 0.0, hit.t) {
             if PLAIN || cutouts.solid(&tri, b1, b2) {
                 *hit = Hit { t, b1, b2, prim: i };
