@@ -86,6 +86,8 @@ pub fn cwbvh_occluded<const PLAIN: bool>(
         let filled = (0..8).fold(0u32, |f, slot| f | ((meta(slot) != 0) as u32) << slot);
         let slot_rays = if let Some(rays) = lanes.slot_rays(&node, origin, open, filled, t_max) {
             rays
+        } else if let Some(ray_slots) = lanes.ray_slots(&node, origin, open, filled, t_max) {
+            transpose(&ray_slots)
         } else {
             let mut ray_slots = [0u8; BUNDLE_RAYS];
             while open != 0 {
@@ -148,7 +150,7 @@ pub fn cwbvh_occluded<const PLAIN: bool>(
 
 /// Nodes entered by at least this many rays are tested a slot at a time for 8 rays at once
 /// (`RayLanes`); fewer rays, each ray against the 8 slots.
-const DENSE_RAYS: u32 = 16;
+const DENSE_RAYS: u32 = 32;
 
 /// The bundle's reciprocal directions by axis, for testing one slot against 8 rays in an
 /// AVX register. Where the CPU has no AVX, `slot_rays` declines and the bundle tests a ray
@@ -199,6 +201,78 @@ impl RayLanes {
         }
         #[cfg(not(target_arch = "x86_64"))]
         None
+    }
+
+    /// The slots of `filled` that each ray of `open` enters (bit s of entry k), for a node
+    /// that fewer than `DENSE_RAYS` of them entered: a ray's 8 slots in one AVX register.
+    /// None without AVX.
+    #[inline(always)]
+    fn ray_slots(
+        &self,
+        node: &CwBvhPlanes,
+        origin: Vec3,
+        open: u64,
+        filled: u32,
+        t_max: f32,
+    ) -> Option<[u8; BUNDLE_RAYS]> {
+        if !self.avx {
+            return None;
+        }
+        #[cfg(target_arch = "x86_64")]
+        {
+            for _ in 0..open.count_ones() {
+                count!(NODES);
+            }
+            // SAFETY: the CPU has AVX (checked in `new`).
+            Some(unsafe { self.ray_slots_avx(node, origin, open, filled, t_max) })
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        None
+    }
+
+    /// `ray_slots` with the node's 8 slots of each plane in one AVX register: the same
+    /// operations on the same numbers as `CwBvhPlanes::slot_hits` (see `slot_rays_avx`).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn ray_slots_avx(
+        &self,
+        node: &CwBvhPlanes,
+        origin: Vec3,
+        mut open: u64,
+        filled: u32,
+        t_max: f32,
+    ) -> [u8; BUNDLE_RAYS] {
+        use core::arch::x86_64::*;
+        let rel = crate::math::vec3(node.p) - origin;
+        let planes = |p: &[crate::glam::Vec4; 2]| _mm256_loadu_ps(p.as_ptr() as *const f32);
+        let (min_x, max_x) = (planes(&node.child_min_x), planes(&node.child_max_x));
+        let (min_y, max_y) = (planes(&node.child_min_y), planes(&node.child_max_y));
+        let (min_z, max_z) = (planes(&node.child_min_z), planes(&node.child_max_z));
+        let (zero, limit) = (_mm256_setzero_ps(), _mm256_set1_ps(t_max));
+        let mut ray_slots = [0u8; BUNDLE_RAYS];
+        while open != 0 {
+            let k = open.trailing_zeros() as usize;
+            open &= open - 1;
+            // One axis: the entry and exit t of the 8 slots, by the ray's direction's sign.
+            let axis = |lo, hi, inv: f32, rel: f32| {
+                let negative = _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_set1_ps(inv), zero);
+                let (inv, offset) = (_mm256_set1_ps(inv), _mm256_set1_ps(rel * inv));
+                let near = _mm256_blendv_ps(lo, hi, negative);
+                let far = _mm256_blendv_ps(hi, lo, negative);
+                (
+                    _mm256_add_ps(_mm256_mul_ps(near, inv), offset),
+                    _mm256_add_ps(_mm256_mul_ps(far, inv), offset),
+                )
+            };
+            let (x0, x1) = axis(min_x, max_x, self.inv[0][k], rel.x);
+            let (y0, y1) = axis(min_y, max_y, self.inv[1][k], rel.y);
+            let (z0, z1) = axis(min_z, max_z, self.inv[2][k], rel.z);
+            let t_near = _mm256_max_ps(_mm256_max_ps(_mm256_max_ps(x0, y0), z0), zero);
+            let t_far = _mm256_min_ps(_mm256_min_ps(_mm256_min_ps(x1, y1), z1), limit);
+            let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OS>(t_near, t_far)) as u32;
+            ray_slots[k] = (hit & filled) as u8;
+        }
+        ray_slots
     }
 
     /// `slot_rays` 8 rays at a time: the same operations on the same numbers as
