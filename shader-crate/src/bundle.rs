@@ -72,7 +72,7 @@ pub fn cwbvh_occluded<const PLAIN: bool>(
         if open == 0 {
             continue;
         }
-        let node = CwBvhPlanes::read(nodes, index);
+        let node = CwBvhPlanes::get(nodes, index);
         // The next node's load starts now, behind this node's tests of every ray.
         if sp > 0 {
             prefetch(
@@ -84,9 +84,9 @@ pub fn cwbvh_occluded<const PLAIN: bool>(
         // Each ray's slab tests, turned around into the rays that enter each slot.
         let meta = |slot: usize| (node.child_meta[slot / 4] >> (8 * (slot % 4))) & 0xff;
         let filled = (0..8).fold(0u32, |f, slot| f | ((meta(slot) != 0) as u32) << slot);
-        let slot_rays = if let Some(rays) = lanes.slot_rays(&node, origin, open, filled, t_max) {
+        let slot_rays = if let Some(rays) = lanes.slot_rays(node, origin, open, filled, t_max) {
             rays
-        } else if let Some(ray_slots) = lanes.ray_slots(&node, origin, open, filled, t_max) {
+        } else if let Some(ray_slots) = lanes.ray_slots(node, origin, open, filled, t_max) {
             transpose(&ray_slots)
         } else {
             let mut ray_slots = [0u8; BUNDLE_RAYS];
@@ -114,13 +114,13 @@ pub fn cwbvh_occluded<const PLAIN: bool>(
                 if open == 0 || prim == leaves {
                     continue;
                 }
-                let tri = Triangle::read(triangles, prim);
+                let tri = Triangle::get(triangles, prim);
                 while open != 0 {
                     let k = open.trailing_zeros() as usize;
                     open &= open - 1;
                     count!(TRIANGLES);
                     if cutouts
-                        .solid_hit::<PLAIN>(&testers[k], &tri, t_max)
+                        .solid_hit::<PLAIN>(&testers[k], tri, t_max)
                         .is_some()
                     {
                         occluded |= 1u64 << k;

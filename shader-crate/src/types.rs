@@ -41,6 +41,15 @@ impl Triangle {
     /// struct's fields).
     pub const WORDS: usize = 3;
 
+    /// Triangle `i` of a triangle buffer, in place (the CPU's AO bundles: one bounds check
+    /// and no copy).
+    #[cfg(not(target_arch = "spirv"))]
+    #[inline(always)]
+    pub fn get(words: &[UVec4], i: u32) -> &Self {
+        let w = Self::WORDS * i as usize;
+        bytemuck::from_bytes(bytemuck::cast_slice(&words[w..w + Self::WORDS]))
+    }
+
     /// Triangle `i` of a triangle buffer read as words.
     pub fn read(words: &[UVec4], i: u32) -> Self {
         let w = Self::WORDS * i as usize;
@@ -678,6 +687,15 @@ pub struct CwBvhPlanes {
 impl CwBvhPlanes {
     /// 16-byte words a node takes in the node buffer.
     pub const WORDS: usize = 14;
+
+    /// Node `i` of a node buffer, in place (the CPU's AO bundles: one bounds check and no
+    /// copy, where `read` checks and copies each of the 14 words).
+    #[cfg(not(target_arch = "spirv"))]
+    #[inline(always)]
+    pub fn get(nodes: &[UVec4], i: u32) -> &Self {
+        let w = Self::WORDS * i as usize;
+        bytemuck::from_bytes(bytemuck::cast_slice(&nodes[w..w + Self::WORDS]))
+    }
 
     /// Node `i` of a node buffer read as words. Inlined: as a call it copied all 224 bytes
     /// out for every node visit (8% of the CPU backend's AO samples on grass-1m).
