@@ -223,6 +223,15 @@ impl TriangleTester {
             ray: *ray,
         }
     }
+    /// The watertight test's per-ray set-up, where that is the test in use.
+    #[cfg(not(target_arch = "spirv"))]
+    pub fn watertight(&self) -> Option<&WatertightRay> {
+        #[cfg(not(feature = "intersect-moller-trumbore"))]
+        return Some(&self.wr);
+        #[cfg(feature = "intersect-moller-trumbore")]
+        return None;
+    }
+
     pub fn intersect(&self, tri: &Triangle, t_min: f32, t_max: f32) -> Option<(f32, f32, f32)> {
         #[cfg(not(feature = "intersect-moller-trumbore"))]
         return intersect_watertight(&self.wr, tri, t_min, t_max);
