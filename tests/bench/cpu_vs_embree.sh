@@ -6,7 +6,7 @@
 set -euo pipefail
 R=${RUNNER:-runner}
 rounds=${1:-2}; shift || true
-scenes=("${@:-spheres-1m rocks-1m city-1m grass-1m}")
+scenes=("${@:-spheres-1m rocks-1m city-1m grass-1m shell-1m}")
 dir=$(mktemp -d)
 cc -O2 -o "$dir/embree_ao" "$(dirname "$0")/embree_ao.c" -lembree3 -lpthread -lm
 threads=$(nproc)
