@@ -5,7 +5,7 @@ mod common;
 
 use common::{closed_box, icosphere};
 use glam::{UVec4, Vec3};
-use kernels::bundle::{cwbvh_occluded, BUNDLE_RAYS};
+use kernels::bundle::{cwbvh_occluded, cwbvh_occluded_without_avx, BUNDLE_RAYS};
 use kernels::bvh::{
     brute_force_any_hit, brute_force_closest_hit, bvh2_traverse, cwbvh_traverse, Cutouts,
 };
@@ -192,9 +192,10 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
     bundles_agree_with_brute_force(tris, tc, &decoded, lo, hi, rays / 16, seed);
 }
 
-/// Bundles of rays from one point (the CPU's AO, `bundle::cwbvh_occluded`): each ray's bit
-/// is its own any-hit answer, for bundles of every size up to 64, axis-parallel rays among
-/// them, and limits from zero to beyond the scene.
+/// Bundles of rays from one point (the CPU's AO, `bundle::cwbvh_occluded`, with AVX where
+/// this CPU has it and without): each ray's bit is its own any-hit answer, for bundles of
+/// every size up to 64, axis-parallel rays among them, and limits from zero to beyond the
+/// scene.
 fn bundles_agree_with_brute_force(
     tris: &[Triangle],
     leaf_order: &[UVec4],
@@ -226,6 +227,10 @@ fn bundles_agree_with_brute_force(
         };
         let got =
             cwbvh_occluded::<false>(leaf_order, &Cutouts::NONE, decoded, &rays, INVALID, limit);
+        let (tc, none) = (leaf_order, &Cutouts::NONE);
+        let portable =
+            cwbvh_occluded_without_avx::<false>(tc, none, decoded, &rays, INVALID, limit);
+        assert_eq!(got, portable, "with and without AVX: {rays:?} to {limit}");
         for (k, ray) in rays.iter().enumerate() {
             let want = brute_force_any_hit(words, &Cutouts::NONE, ray, limit);
             assert_eq!(

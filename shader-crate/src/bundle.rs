@@ -46,6 +46,55 @@ pub fn cwbvh_occluded<const PLAIN: bool>(
     leaves: u32,
     t_max: f32,
 ) -> u64 {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx") && std::is_x86_feature_detected!("popcnt") {
+        // SAFETY: the CPU has both (checked just now).
+        return unsafe { occluded_avx::<PLAIN>(triangles, cutouts, nodes, rays, leaves, t_max) };
+    }
+    walk::<PLAIN, false>(triangles, cutouts, nodes, rays, leaves, t_max)
+}
+
+/// `cwbvh_occluded` as a CPU without AVX runs it, whatever this one has (for the tests,
+/// which hold both walks to brute force).
+pub fn cwbvh_occluded_without_avx<const PLAIN: bool>(
+    triangles: &[UVec4],
+    cutouts: &Cutouts,
+    nodes: &[UVec4],
+    rays: &[Ray],
+    leaves: u32,
+    t_max: f32,
+) -> u64 {
+    walk::<PLAIN, false>(triangles, cutouts, nodes, rays, leaves, t_max)
+}
+
+/// `walk` compiled for CPUs with AVX and popcount, with `RayLanes`' AVX tests: its bit
+/// counts are one instruction each (a dozen without popcount) and the edge pre-filter
+/// inlines into it. (The slot tests stay calls: a function with a target feature cannot
+/// be always inlined, and without one the intrinsics in it became calls: 4× slower.)
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,popcnt")]
+unsafe fn occluded_avx<const PLAIN: bool>(
+    triangles: &[UVec4],
+    cutouts: &Cutouts,
+    nodes: &[UVec4],
+    rays: &[Ray],
+    leaves: u32,
+    t_max: f32,
+) -> u64 {
+    walk::<PLAIN, true>(triangles, cutouts, nodes, rays, leaves, t_max)
+}
+
+/// `cwbvh_occluded`'s walk; `AVX`: with `RayLanes`' AVX tests, only where the CPU has AVX
+/// (`occluded_avx`).
+#[inline(always)]
+fn walk<const PLAIN: bool, const AVX: bool>(
+    triangles: &[UVec4],
+    cutouts: &Cutouts,
+    nodes: &[UVec4],
+    rays: &[Ray],
+    leaves: u32,
+    t_max: f32,
+) -> u64 {
     let n = rays.len().min(BUNDLE_RAYS);
     let all = first_rays(n);
     if nodes.is_empty() || n == 0 {
@@ -60,7 +109,7 @@ pub fn cwbvh_occluded<const PLAIN: bool>(
         inv_dir[k] = safe_recip(ray.dir);
         testers[k] = TriangleTester::new(ray);
     }
-    let lanes = RayLanes::new(&inv_dir, &testers[..n]);
+    let lanes = RayLanes::<AVX>::new(&inv_dir, &testers[..n]);
     let mut occluded = 0u64;
     let mut stack = [(0u32, 0u64); BUNDLE_STACK];
     stack[0] = (0, all);
@@ -158,11 +207,11 @@ pub fn cwbvh_occluded<const PLAIN: bool>(
 /// (`RayLanes`); fewer rays, each ray against the 8 slots.
 const DENSE_RAYS: u32 = 32;
 
-/// The bundle's reciprocal directions by axis, for testing one slot against 8 rays in an
-/// AVX register. Where the CPU has no AVX, `slot_rays` declines and the bundle tests a ray
-/// at a time.
-struct RayLanes {
-    avx: bool,
+/// The bundle's rays laid out for AVX tests: reciprocal directions by axis (one slot against
+/// 8 rays in a register) and the watertight set-up (`edge_candidates`). Without `AVX` (a
+/// CPU without it) each test declines and the bundle tests a ray at a time; `AVX` is set
+/// only in `occluded_avx`, which runs where the CPU has AVX.
+struct RayLanes<const AVX: bool> {
     inv: [[f32; BUNDLE_RAYS]; 3],
     /// Each ray's watertight set-up for `edge_candidates`: the axes (kx, ky, kz, kz) that
     /// permute a vertex, and the shear (sx, sy, 0, 0). `edges` is false where the triangle
@@ -172,7 +221,7 @@ struct RayLanes {
     shear: [[f32; 4]; BUNDLE_RAYS],
 }
 
-impl RayLanes {
+impl<const AVX: bool> RayLanes<AVX> {
     fn new(inv_dir: &[Vec3; BUNDLE_RAYS], testers: &[TriangleTester]) -> Self {
         let mut inv = [[0.0; BUNDLE_RAYS]; 3];
         for (k, d) in inv_dir.iter().enumerate() {
@@ -193,10 +242,6 @@ impl RayLanes {
             }
         }
         Self {
-            #[cfg(target_arch = "x86_64")]
-            avx: std::is_x86_feature_detected!("avx"),
-            #[cfg(not(target_arch = "x86_64"))]
-            avx: false,
             inv,
             edges,
             axes,
@@ -215,12 +260,12 @@ impl RayLanes {
     /// mispredicted. Without AVX, or with another triangle test, all of `open`.
     #[inline(always)]
     fn edge_candidates(&self, tri: &Triangle, origin: Vec3, open: u64) -> u64 {
-        if !self.avx || !self.edges {
+        if !AVX || !self.edges {
             return open;
         }
         #[cfg(target_arch = "x86_64")]
         {
-            // SAFETY: the CPU has AVX (checked in `new`).
+            // SAFETY: `AVX` only in `occluded_avx`, run where the CPU has AVX.
             unsafe { self.edge_candidates_avx(tri, origin, open) }
         }
         #[cfg(not(target_arch = "x86_64"))]
@@ -229,6 +274,7 @@ impl RayLanes {
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
+    #[inline]
     unsafe fn edge_candidates_avx(&self, tri: &Triangle, origin: Vec3, mut open: u64) -> u64 {
         use core::arch::x86_64::*;
         // The vertices relative to the origin, as `intersect_watertight` computes them.
@@ -289,7 +335,7 @@ impl RayLanes {
         filled: u32,
         t_max: f32,
     ) -> Option<[u64; 8]> {
-        if !self.avx || open.count_ones() < DENSE_RAYS {
+        if !AVX || open.count_ones() < DENSE_RAYS {
             return None;
         }
         #[cfg(target_arch = "x86_64")]
@@ -297,7 +343,7 @@ impl RayLanes {
             for _ in 0..open.count_ones() {
                 count!(NODES);
             }
-            // SAFETY: the CPU has AVX (checked in `new`).
+            // SAFETY: `AVX` only in `occluded_avx`, run where the CPU has AVX.
             Some(unsafe { self.slot_rays_avx(node, origin, open, filled, t_max) })
         }
         #[cfg(not(target_arch = "x86_64"))]
@@ -316,7 +362,7 @@ impl RayLanes {
         filled: u32,
         t_max: f32,
     ) -> Option<[u8; BUNDLE_RAYS]> {
-        if !self.avx {
+        if !AVX {
             return None;
         }
         #[cfg(target_arch = "x86_64")]
@@ -324,7 +370,7 @@ impl RayLanes {
             for _ in 0..open.count_ones() {
                 count!(NODES);
             }
-            // SAFETY: the CPU has AVX (checked in `new`).
+            // SAFETY: `AVX` only in `occluded_avx`, run where the CPU has AVX.
             Some(unsafe { self.ray_slots_avx(node, origin, open, filled, t_max) })
         }
         #[cfg(not(target_arch = "x86_64"))]
@@ -335,6 +381,7 @@ impl RayLanes {
     /// operations on the same numbers as `CwBvhPlanes::slot_hits` (see `slot_rays_avx`).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
+    #[inline]
     unsafe fn ray_slots_avx(
         &self,
         node: &CwBvhPlanes,
@@ -381,6 +428,7 @@ impl RayLanes {
     /// max and min with the same operand order), so the same hits to the bit.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
+    #[inline]
     unsafe fn slot_rays_avx(
         &self,
         node: &CwBvhPlanes,
@@ -536,7 +584,7 @@ mod tests {
 
     /// The rays of a bundle from `origin` that `intersect_watertight` finds meeting `tri`
     /// (anywhere in front), and those `edge_candidates` keeps.
-    fn hits_and_candidates(lanes: &RayLanes, rays: &[Ray], tri: &Triangle) -> (u64, u64) {
+    fn hits_and_candidates(lanes: &RayLanes<true>, rays: &[Ray], tri: &Triangle) -> (u64, u64) {
         let hits = rays.iter().enumerate().fold(0u64, |m, (k, ray)| {
             let hit = intersect_watertight(&WatertightRay::new(ray), tri, 0.0, f32::INFINITY);
             m | (hit.is_some() as u64) << k
@@ -547,7 +595,7 @@ mod tests {
         )
     }
 
-    fn lanes(rays: &[Ray]) -> RayLanes {
+    fn lanes(rays: &[Ray]) -> RayLanes<true> {
         let mut inv_dir = [Vec3::ZERO; BUNDLE_RAYS];
         for (k, ray) in rays.iter().enumerate() {
             inv_dir[k] = safe_recip(ray.dir);
@@ -563,8 +611,11 @@ mod tests {
     /// misses, or it would be no filter.
     #[test]
     fn edge_candidates_keep_every_hit() {
-        let probe = lanes(&[Ray::new(Vec3::ZERO, Vec3::X)]);
-        if !probe.avx || !probe.edges {
+        #[cfg(target_arch = "x86_64")]
+        let avx = std::is_x86_feature_detected!("avx");
+        #[cfg(not(target_arch = "x86_64"))]
+        let avx = false;
+        if !avx || !lanes(&[Ray::new(Vec3::ZERO, Vec3::X)]).edges {
             return; // The filter is off: it keeps every ray.
         }
         let mut rng = Rng::from_seed(7);
