@@ -402,7 +402,7 @@ impl<const AVX: bool> RayLanes<AVX> {
             let k = open.trailing_zeros() as usize;
             open &= open - 1;
             // One axis: the entry and exit t of the 8 slots, by the ray's direction's sign.
-            // `slab_axis` and `slab_lanes` written out: called here, they left a plane to be
+            // `slab_axis` and `slab_lanes` written out: used here, they left a plane to be
             // reloaded from the stack for every ray (3-4% slower on grass-1m, spheres-1m).
             let axis = |lo, hi, inv: f32, rel: f32| {
                 let negative = _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_set1_ps(inv), zero);
