@@ -4,7 +4,7 @@
 use crate::bsdf::{Bsdf, BSDF_CONDUCTOR, BSDF_DIELECTRIC};
 use crate::glam::{UVec2, UVec4, Vec2, Vec3, Vec4};
 use crate::intersect::{intersect_aabb, Hit, Ray, TriangleTester};
-use crate::math::vec3;
+use crate::math::{max, min, vec3};
 use crate::rng::pcg_hash;
 use crate::sampling::orthonormal_basis;
 use crate::texture::sample_bilinear;
@@ -613,8 +613,8 @@ impl NodeRay {
 fn cwbvh_child_hits(ray: &NodeRay, meta: u32, near: Vec3, far: Vec3) -> u32 {
     let near = near * ray.slope + ray.offset;
     let far = far * ray.slope + ray.offset;
-    let t_near = near.max_element().max(0.0);
-    let t_far = far.min_element().min(ray.t_max);
+    let t_near = max(max(max(near.x, near.y), near.z), 0.0);
+    let t_far = min(min(min(far.x, far.y), far.z), ray.t_max);
     let bits = child_bits(ray, meta);
     if t_near <= t_far {
         bits
@@ -647,16 +647,15 @@ fn cwbvh_half_hits(ray: &NodeRay, meta4: u32, x: (u32, u32), y: (u32, u32), z: (
     let (nx, fx) = near_far(x.0, x.1, ray.negative[0]);
     let (ny, fy) = near_far(y.0, y.1, ray.negative[1]);
     let (nz, fz) = near_far(z.0, z.1, ray.negative[2]);
-    let mut mask = 0u32;
-    let mut shift = 0u32;
-    while shift < 32 {
+    // The four children written out: rust-gpu leaves a loop over them a loop in the
+    // SPIR-V, its byte shifts variables.
+    let child = |shift: u32| {
         let q = |w: u32| ((w >> shift) & 0xff) as f32;
         let near = Vec3::new(q(nx), q(ny), q(nz));
         let far = Vec3::new(q(fx), q(fy), q(fz));
-        mask |= cwbvh_child_hits(ray, (meta4 >> shift) & 0xff, near, far);
-        shift += 8;
-    }
-    mask
+        cwbvh_child_hits(ray, (meta4 >> shift) & 0xff, near, far)
+    };
+    child(0) | child(8) | child(16) | child(24)
 }
 
 /// [`cwbvh_half_hits`] over decoded planes (`x`, `y`, `z`: the 4 children's min and max),

@@ -3,6 +3,7 @@
 //! CPU backend (rayon over pixels), and in `#[test]`s. Kernels read no globals: all inputs
 //! come in as arguments (slices for buffers, `&FrameParams` for uniforms).
 #![cfg_attr(target_arch = "spirv", no_std)]
+#![cfg_attr(target_arch = "spirv", feature(asm_experimental_arch))]
 #![deny(warnings)]
 
 pub mod bindings;

@@ -18,6 +18,48 @@ pub fn sin_cos(x: f32) -> (f32, f32) {
     (x.sin(), x.cos())
 }
 
+/// The larger of `a` and `b`, the other where one is NaN: `f32::max`. rust-gpu writes
+/// `f32::max` as compares, selects and a branch on NaN; GLSL's NMax is the same function
+/// in one instruction.
+#[inline(always)]
+pub fn max(a: f32, b: f32) -> f32 {
+    #[cfg(target_arch = "spirv")]
+    return glsl_binary!(a, b, "80"); // NMax
+    #[cfg(not(target_arch = "spirv"))]
+    a.max(b)
+}
+
+/// The smaller of `a` and `b`, the other where one is NaN: `f32::min` (GLSL's NMin).
+#[inline(always)]
+pub fn min(a: f32, b: f32) -> f32 {
+    #[cfg(target_arch = "spirv")]
+    return glsl_binary!(a, b, "79"); // NMin
+    #[cfg(not(target_arch = "spirv"))]
+    a.min(b)
+}
+
+/// GLSL.std.450 instruction number `op` of two floats.
+#[cfg(target_arch = "spirv")]
+macro_rules! glsl_binary {
+    ($a:expr, $b:expr, $op:literal) => {{
+        let mut result = 0.0f32;
+        // SAFETY: one arithmetic instruction on two floats, its result stored to a local.
+        unsafe {
+            core::arch::asm!(
+                "%glsl = OpExtInstImport \"GLSL.std.450\"",
+                concat!("%result = OpExtInst typeof*{result} %glsl ", $op, " {a} {b}"),
+                "OpStore {result} %result",
+                a = in(reg) $a,
+                b = in(reg) $b,
+                result = in(reg) &mut result,
+            );
+        }
+        result
+    }};
+}
+#[cfg(target_arch = "spirv")]
+use glsl_binary;
+
 /// Division of whole numbers below `FAST_DIVIDENDS` by a fixed divisor through a float
 /// reciprocal: ⌊(n + ½) · (1/d)⌋ is ⌊n / d⌋ exactly there, as (n + ½)/d lies at least ½/d
 /// from a whole number and the float error stays below 0.36/d (n + ½ exact, the product

@@ -35,6 +35,23 @@ pub const ALPHA_TESTED: u32 = 1 << 31;
 /// alpha 0.3 passes 70% of the rays that meet it, camera, bounce and shadow rays alike.
 pub const ALPHA_BLENDED: u32 = 1 << 30;
 
+/// Word `k` of a buffer the host built (nodes, triangles), `k` clamped into the buffer.
+/// On the GPU without a bounds check: rust-gpu writes a slice index as a compare and a
+/// branch out of the traversal loop, five of them per CWBVH node and three per triangle;
+/// the clamp keeps a read inside the buffer in one instruction. The CPU indexes as usual.
+#[inline(always)]
+pub fn buffer_word(words: &[UVec4], k: usize) -> UVec4 {
+    #[cfg(target_arch = "spirv")]
+    {
+        let k = k.min(words.len().max(1) - 1);
+        // SAFETY: k < len once clamped; the kernels never read an empty buffer (the
+        // traversals return before reading nodes or triangles of an empty scene).
+        unsafe { *words.get_unchecked(k) }
+    }
+    #[cfg(not(target_arch = "spirv"))]
+    words[k]
+}
+
 impl Triangle {
     /// 16-byte words a triangle takes in the triangle buffer, which the kernels read a word
     /// at a time (like the nodes: one 128-bit load per word whatever the driver makes of a
@@ -53,7 +70,11 @@ impl Triangle {
     /// Triangle `i` of a triangle buffer read as words.
     pub fn read(words: &[UVec4], i: u32) -> Self {
         let w = Self::WORDS * i as usize;
-        Self::from_words([words[w], words[w + 1], words[w + 2]])
+        Self::from_words([
+            buffer_word(words, w),
+            buffer_word(words, w + 1),
+            buffer_word(words, w + 2),
+        ])
     }
 
     /// The triangle from its three 16-byte words.
@@ -613,11 +634,11 @@ impl CwBvhNode {
     pub fn read(nodes: &[UVec4], i: u32) -> Self {
         let w = Self::WORDS * i as usize;
         Self::from_words([
-            nodes[w],
-            nodes[w + 1],
-            nodes[w + 2],
-            nodes[w + 3],
-            nodes[w + 4],
+            buffer_word(nodes, w),
+            buffer_word(nodes, w + 1),
+            buffer_word(nodes, w + 2),
+            buffer_word(nodes, w + 3),
+            buffer_word(nodes, w + 4),
         ])
     }
 
