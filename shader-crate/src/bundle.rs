@@ -224,13 +224,22 @@ struct RayLanes<const AVX: bool> {
 impl<const AVX: bool> RayLanes<AVX> {
     fn new(inv_dir: &[Vec3; BUNDLE_RAYS], testers: &[TriangleTester]) -> Self {
         let mut inv = [[0.0; BUNDLE_RAYS]; 3];
+        let mut axes = [[0; 4]; BUNDLE_RAYS];
+        let mut shear = [[0.0; 4]; BUNDLE_RAYS];
+        // Without AVX no test reads the lanes: the walk tests a ray at a time.
+        if !AVX {
+            return Self {
+                inv,
+                edges: false,
+                axes,
+                shear,
+            };
+        }
         for (k, d) in inv_dir.iter().enumerate() {
             inv[0][k] = d.x;
             inv[1][k] = d.y;
             inv[2][k] = d.z;
         }
-        let mut axes = [[0; 4]; BUNDLE_RAYS];
-        let mut shear = [[0.0; 4]; BUNDLE_RAYS];
         let mut edges = true;
         for (k, tester) in testers.iter().enumerate() {
             match tester.watertight() {
