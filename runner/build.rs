@@ -1,7 +1,7 @@
 //! Compiles `shader-crate` to SPIR-V with rust-gpu and exposes the module path as
 //! `env!("kernels.spv")`. The runner's cargo features that select kernel variants are
 //! forwarded to the shader crate, so the GPU and the CPU backend run the same variant.
-use spirv_builder::{SpirvBuilder, SpirvMetadata};
+use spirv_builder::{Capability, SpirvBuilder, SpirvMetadata};
 
 /// Runner features that are really shader-crate features (see runner/Cargo.toml).
 const FORWARDED_FEATURES: &[&str] = &[
@@ -28,7 +28,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut builder = SpirvBuilder::new("../shader-crate", "spirv-unknown-vulkan1.2")
         .shader_crate_default_features(false)
         .shader_crate_features(features)
-        .spirv_metadata(SpirvMetadata::None);
+        .spirv_metadata(SpirvMetadata::None)
+        // Subgroup votes (`shader_crate::subgroup`): every Vulkan GPU we target has them.
+        .capability(Capability::GroupNonUniform)
+        .capability(Capability::GroupNonUniformBallot);
     builder.build_script.defaults = true;
     builder.build_script.env_shader_spv_path = Some(true);
     builder.build()?;

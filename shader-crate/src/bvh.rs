@@ -8,7 +8,7 @@ use crate::math::{max, min, vec3};
 use crate::rng::pcg_hash;
 use crate::sampling::orthonormal_basis;
 use crate::texture::sample_bilinear;
-use crate::types::cwbvh_meta::{self, FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
+use crate::types::cwbvh_meta::{FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
 use crate::types::{
     Bvh2Node, CwBvhNode, CwBvhPlanes, GBufferTexel, Light, Material, TextureInfo, Triangle,
     TriangleShading, INVALID, METAL_THRESHOLD, NORMAL_MAP_HEIGHT, SHADING_BITANGENT_FLIPPED,
@@ -26,6 +26,8 @@ pub trait RayPool {
     fn ray(&self, index: u32) -> (Ray, u32);
     /// Ray `index` met nothing before its end.
     fn escaped(&mut self, index: u32);
+    /// Whether every ray has been taken.
+    fn exhausted(&self) -> bool;
 }
 
 /// The node type of the traversal compiled in.
@@ -52,6 +54,14 @@ pub const BVH2_STACK: usize = 64;
 /// traversal zero-initialised its stack (24 entries instead of 32: a ReSTIR frame 2.40 →
 /// 2.34 ms on the H100); since `CwbvhWalk` leaves it uninitialised, it costs local memory.
 pub const CWBVH_STACK: usize = 24;
+
+/// A GPU thread whose pooled ray has ended (`SceneBuffers::trace_pool`) waits for this many
+/// threads of its warp (of 32) to be done before they all start their next rays together.
+/// A ray's start (taking it from the pool, making its direction, the walk's set-up) costs
+/// the warp as much whether one lane or twelve run it, the others waiting: started one lane
+/// at a time, nearly every step of the walk paid for one. Aila & Laine 2009's dynamic fetch;
+/// 8 and 12 measured (README, "Benchmark suite"). On the CPU a thread is its own warp.
+pub const START_TOGETHER: u32 = 12;
 
 /// Shadow rays stop this fraction of the way to the light's (offset) point, so that the
 /// light's own triangle never counts as an occluder.
@@ -214,11 +224,12 @@ impl<'a> SceneBuffers<'a> {
 
     /// Trace every ray of `pool` to `t_max`, telling the pool which ones meet nothing
     /// (ambient occlusion). Over a CWBVH the rays run back to back in one traversal loop:
-    /// a GPU thread whose ray ends starts its next one at once instead of idling until
-    /// the slowest ray of its warp is done (the idea of Aila & Laine 2009's persistent
-    /// threads), so a warp takes about the longest *sum* of its threads' rays, not the sum
-    /// of each ray's longest; and where the pool is shared by a workgroup, a thread takes
-    /// rays of other pixels once its own are spoken for, so the sums even out too.
+    /// a GPU thread whose ray ends starts its next one soon (with [`START_TOGETHER`] of its
+    /// warp) instead of idling until the slowest ray of its warp is done (the idea of Aila
+    /// & Laine 2009's persistent threads), so a warp takes about the longest *sum* of its
+    /// threads' rays, not the sum of each ray's longest; and where the pool is shared by a
+    /// workgroup, a thread takes rays of other pixels once its own are spoken for, so the
+    /// sums even out too.
     pub fn trace_pool<const PLAIN: bool, P: RayPool>(&self, pool: &mut P, t_max: f32) {
         #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
         if !self.nodes.is_empty() {
@@ -229,17 +240,31 @@ impl<'a> SceneBuffers<'a> {
             }
             let (ray, leaves) = pool.ray(index);
             let mut walk = CwbvhWalk::new(&ray, t_max, leaves);
+            let mut done = false;
+            // (A warp with fewer threads than that in the loop waits for all of them.)
+            let wanted = START_TOGETHER.min(crate::subgroup::count(true));
             loop {
-                if walk.step::<PLAIN, true, TraversalNode>(self.triangles, &cut, self.nodes, true) {
-                    if !walk.hit.is_hit() {
+                if !done {
+                    done = walk.step::<PLAIN, true, TraversalNode>(
+                        self.triangles,
+                        &cut,
+                        self.nodes,
+                        true,
+                    );
+                    if done && !walk.hit.is_hit() {
                         pool.escaped(index);
                     }
+                }
+                // Threads that have exited found the pool empty: then no thread waits.
+                let finished = crate::subgroup::count(done);
+                if done && (finished >= wanted || pool.exhausted()) {
                     index = pool.take();
                     if index == INVALID {
                         break;
                     }
                     let (ray, leaves) = pool.ray(index);
                     walk.restart(&ray, t_max, leaves);
+                    done = false;
                 }
             }
             return;
@@ -598,9 +623,9 @@ impl NodeRay {
     }
 }
 
-/// Hit bits (see [`WideNode::hits`]) of one child slot, from its meta byte and its near and
-/// far planes. Without a branch: every slot is tested, an empty one (meta 0) adding no
-/// bits, and a hit selects the child's bits. Branching on empty slots and on the slab
+/// Whether the ray enters a child slot's box (near and far planes) before its end. The
+/// caller selects the slot's hit bits (see [`WideNode::hits`]) with it, without a branch:
+/// every slot is tested, an empty one (meta 0) adding no bits. Branching on empty slots and on the slab
 /// test's outcome (as before 858c4e3) left the CPU two unpredictable branches per child:
 /// this made the CPU backend's AO 10–30% faster and the GPU's 1.5–2.4% (the 1M suite
 /// scenes; Cornell box AO 2% slower, its MIS the same). The four children's slab tests side
@@ -610,25 +635,44 @@ impl NodeRay {
 /// the CPU, which reads decoded planes, tests four children at a time there instead
 /// ([`cwbvh_half_hits_decoded`]).
 #[inline(always)]
-fn cwbvh_child_hits(ray: &NodeRay, meta: u32, near: Vec3, far: Vec3) -> u32 {
+fn slab_hit(ray: &NodeRay, near: Vec3, far: Vec3) -> bool {
     let near = near * ray.slope + ray.offset;
     let far = far * ray.slope + ray.offset;
     let t_near = max(max(max(near.x, near.y), near.z), 0.0);
     let t_far = min(min(min(far.x, far.y), far.z), ray.t_max);
-    let bits = child_bits(ray, meta);
-    if t_near <= t_far {
-        bits
-    } else {
-        0
-    }
+    t_near <= t_far
 }
 
-/// The hit-mask bits of a child slot with meta byte `meta`, when the ray hits its box.
+/// [`child_bits`] of the 4 slots whose meta bytes are `meta4`, a byte per slot in two
+/// words: the bits (1 for an interior child, a leaf's 1, 3 or 7, none for an empty slot)
+/// and where they go (24 + slot XOR the octant, or a leaf's first triangle's offset).
+/// Four slots' worth in a handful of word operations, where a slot at a time took as many
+/// per slot.
+#[inline(always)]
+fn child_bits4(meta4: u32, oct_inv: u32) -> (u32, u32) {
+    // Bit 4 of each interior slot's byte: its bits 3 and 4 both set (`is_interior`); the
+    // shift carries bit 7 of a byte into bit 0 of the next, which the mask drops.
+    let interior4 = meta4 & (meta4 << 1) & 0x1010_1010;
+    // oct_inv < 8 times a byte of 1 stays in its byte.
+    let position4 = (meta4 & 0x1f1f_1f1f) ^ ((interior4 >> 4) * oct_inv);
+    ((meta4 >> 5) & 0x0707_0707, position4)
+}
+
+/// The hit-mask bits of the slot whose byte in [`child_bits4`]'s two words starts at bit
+/// `shift`.
+#[inline(always)]
+fn slot_bits(bits4: u32, position4: u32, shift: u32) -> u32 {
+    ((bits4 >> shift) & 7) << ((position4 >> shift) & 0x1f)
+}
+
+/// The hit-mask bits of a child slot with meta byte `meta`, when the ray hits its box
+/// (what [`child_bits4`] computes four slots at a time; the tests hold the two to each other).
 /// Interior child: index = 24 + slot, XOR the ray octant, which orders the children front
 /// to back when popped highest bit first. Leaf child: its triangles' bits from its first
 /// offset. An empty slot (meta 0) is a leaf of no triangles: no bits.
-#[inline(always)]
+#[cfg(test)]
 fn child_bits(ray: &NodeRay, meta: u32) -> u32 {
+    use crate::types::cwbvh_meta;
     if cwbvh_meta::is_interior(meta) {
         1 << (cwbvh_meta::index(meta) ^ ray.oct_inv)
     } else {
@@ -649,11 +693,17 @@ fn cwbvh_half_hits(ray: &NodeRay, meta4: u32, x: (u32, u32), y: (u32, u32), z: (
     let (nz, fz) = near_far(z.0, z.1, ray.negative[2]);
     // The four children written out: rust-gpu leaves a loop over them a loop in the
     // SPIR-V, its byte shifts variables.
+    let (bits4, position4) = child_bits4(meta4, ray.oct_inv);
     let child = |shift: u32| {
         let q = |w: u32| ((w >> shift) & 0xff) as f32;
         let near = Vec3::new(q(nx), q(ny), q(nz));
         let far = Vec3::new(q(fx), q(fy), q(fz));
-        cwbvh_child_hits(ray, (meta4 >> shift) & 0xff, near, far)
+        let bits = slot_bits(bits4, position4, shift);
+        if slab_hit(ray, near, far) {
+            bits
+        } else {
+            0
+        }
     };
     child(0) | child(8) | child(16) | child(24)
 }
@@ -672,10 +722,11 @@ fn cwbvh_half_hits_decoded(
     z: (Vec4, Vec4),
 ) -> u32 {
     let hit = decoded_slab_hits(ray, x, y, z);
+    let (bits4, position4) = child_bits4(meta4, ray.oct_inv);
     let mut mask = 0u32;
     let mut k = 0u32;
     while k < 4 {
-        mask |= child_bits(ray, (meta4 >> (8 * k)) & 0xff) & 0u32.wrapping_sub((hit >> k) & 1);
+        mask |= slot_bits(bits4, position4, 8 * k) & 0u32.wrapping_sub((hit >> k) & 1);
         k += 1;
     }
     mask
@@ -1200,6 +1251,38 @@ fn offset_component(p: f32, n: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn four_slots_bits_at_once_are_each_slots_bits() {
+        // Every meta byte obvhs writes: empty, interior (24 + slot), and leaves of 1, 2 or 3
+        // triangles at offsets below 24.
+        let mut metas = vec![0u32];
+        metas.extend((0..8).map(|slot| (1 << 5) | (24 + slot)));
+        for bits in [1u32, 3, 7] {
+            metas.extend((0..24).map(|offset| (bits << 5) | offset));
+        }
+        for oct_inv in 0..8 {
+            let ray = NodeRay::new([0.0; 3], Vec3::ONE, Vec3::ZERO, Vec3::ONE, oct_inv, 1.0);
+            for (i, &a) in metas.iter().enumerate() {
+                // Each meta byte in each of the four positions, beside three others.
+                let b = metas[(i * 7 + 1) % metas.len()];
+                let c = metas[(i * 13 + 2) % metas.len()];
+                let d = metas[(i * 29 + 3) % metas.len()];
+                for meta4 in [
+                    a | b << 8 | c << 16 | d << 24,
+                    d | a << 8 | b << 16 | c << 24,
+                    c | d << 8 | a << 16 | b << 24,
+                    b | c << 8 | d << 16 | a << 24,
+                ] {
+                    let (bits4, position4) = child_bits4(meta4, oct_inv);
+                    for shift in [0, 8, 16, 24] {
+                        let bits = slot_bits(bits4, position4, shift);
+                        assert_eq!(bits, child_bits(&ray, (meta4 >> shift) & 0xff));
+                    }
+                }
+            }
+        }
+    }
 
     /// A triangle in the z = 0 plane (normal +z) with texture coordinates at its corners.
     fn mapped(uvs: [f32; 6]) -> (Triangle, TriangleShading) {

@@ -239,6 +239,10 @@ impl<M: GroupMemory> RayPool for GroupPool<'_, M> {
         let (_, thread) = self.point_of(index);
         self.memory.fetch_add(ESCAPED + thread, 1);
     }
+
+    fn exhausted(&self) -> bool {
+        self.memory.load(NEXT) >= self.total
+    }
 }
 
 /// Group phase 1, every thread `thread` after the group's memory was cleared (`clear`):
