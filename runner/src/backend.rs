@@ -63,8 +63,8 @@ pub fn open(
         BackendChoice::Gpu => match list.first() {
             Some(a) => a,
             None => bail!(
-                "no Vulkan adapter with SPIR-V passthrough found (install a Vulkan driver, \
-                 e.g. mesa-vulkan-drivers, or use --backend cpu)"
+                "no Vulkan adapter with SPIR-V passthrough and subgroup operations found \
+                 (install a Vulkan driver, e.g. mesa-vulkan-drivers, or use --backend cpu)"
             ),
         },
         _ => {

@@ -22,7 +22,13 @@ pub fn instance(display: Option<Box<dyn wgpu::wgt::WgpuHasDisplayHandle>>) -> wg
     })
 }
 
-/// The Vulkan adapters that can run our kernels (SPIR-V passthrough), best first:
+/// What an adapter must offer to run our kernels: SPIR-V passthrough, and subgroup
+/// operations (the AO walk's votes, `kernels::subgroup`: wgpu offers ballots only with
+/// the rest of Vulkan 1.1's subgroup operations, which every desktop GPU has).
+pub const REQUIRED_FEATURES: wgpu::Features =
+    wgpu::Features::PASSTHROUGH_SHADERS.union(wgpu::Features::SUBGROUP);
+
+/// The Vulkan adapters that can run our kernels ([`REQUIRED_FEATURES`]), best first:
 /// hardware GPUs, then software rasterisers such as lavapipe.
 pub fn adapters() -> Vec<wgpu::Adapter> {
     adapters_of(&instance(None))
@@ -32,7 +38,7 @@ pub fn adapters_of(instance: &wgpu::Instance) -> Vec<wgpu::Adapter> {
     let mut list: Vec<wgpu::Adapter> =
         pollster::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN))
             .into_iter()
-            .filter(|a| a.features().contains(wgpu::Features::PASSTHROUGH_SHADERS))
+            .filter(|a| a.features().contains(REQUIRED_FEATURES))
             .collect();
     list.sort_by_key(|a| is_software(a) as u8);
     list
@@ -59,7 +65,7 @@ impl GpuContext {
     pub fn new(adapter: &wgpu::Adapter) -> Result<Self> {
         let info = adapter.get_info();
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-        let mut features = wgpu::Features::PASSTHROUGH_SHADERS;
+        let mut features = REQUIRED_FEATURES;
         if timestamps {
             features |= wgpu::Features::TIMESTAMP_QUERY;
         }
