@@ -35,19 +35,31 @@ pub const ALPHA_TESTED: u32 = 1 << 31;
 /// alpha 0.3 passes 70% of the rays that meet it, camera, bounce and shadow rays alike.
 pub const ALPHA_BLENDED: u32 = 1 << 30;
 
-/// Word `k` of a buffer the host built (nodes, triangles), `k` clamped into the buffer.
-/// On the GPU without a bounds check: rust-gpu writes a slice index as a compare and a
-/// branch out of the traversal loop, five of them per CWBVH node and three per triangle;
-/// the clamp keeps a read inside the buffer in one instruction. The CPU indexes as usual.
+/// Where a read of `n` words from word `k` of a buffer the host built (a node's, a
+/// triangle's) starts. On the GPU, without a bounds check: rust-gpu writes a slice index as
+/// a compare and a branch out of the traversal loop, five of them per CWBVH node and three
+/// per triangle; instead `k` is clamped so that all n words lie inside the buffer, one
+/// instruction for the whole read (a clamp per word before 2026-12-05), and the words are
+/// read with [`buffer_word`]. The CPU indexes as usual.
+#[inline(always)]
+pub fn buffer_read(words: &[UVec4], k: usize, n: usize) -> usize {
+    #[cfg(target_arch = "spirv")]
+    return k.min(words.len().max(n) - n);
+    #[cfg(not(target_arch = "spirv"))]
+    {
+        let _ = (words, n);
+        k
+    }
+}
+
+/// Word `k` of a read that [`buffer_read`] placed.
 #[inline(always)]
 pub fn buffer_word(words: &[UVec4], k: usize) -> UVec4 {
+    // SAFETY: `buffer_read` kept the read inside the buffer; the kernels never read a
+    // buffer shorter than one node or triangle (the traversals return before reading an
+    // empty scene's).
     #[cfg(target_arch = "spirv")]
-    {
-        let k = k.min(words.len().max(1) - 1);
-        // SAFETY: k < len once clamped; the kernels never read an empty buffer (the
-        // traversals return before reading nodes or triangles of an empty scene).
-        unsafe { *words.get_unchecked(k) }
-    }
+    return unsafe { *words.get_unchecked(k) };
     #[cfg(not(target_arch = "spirv"))]
     words[k]
 }
@@ -69,7 +81,7 @@ impl Triangle {
 
     /// Triangle `i` of a triangle buffer read as words.
     pub fn read(words: &[UVec4], i: u32) -> Self {
-        let w = Self::WORDS * i as usize;
+        let w = buffer_read(words, Self::WORDS * i as usize, Self::WORDS);
         Self::from_words([
             buffer_word(words, w),
             buffer_word(words, w + 1),
@@ -632,7 +644,7 @@ impl CwBvhNode {
 
     /// Node `i` of a node buffer read as words.
     pub fn read(nodes: &[UVec4], i: u32) -> Self {
-        let w = Self::WORDS * i as usize;
+        let w = buffer_read(nodes, Self::WORDS * i as usize, Self::WORDS);
         Self::from_words([
             buffer_word(nodes, w),
             buffer_word(nodes, w + 1),
