@@ -241,7 +241,8 @@ impl<'a> SceneBuffers<'a> {
             let (ray, leaves) = pool.ray(index);
             let mut walk = CwbvhWalk::new(&ray, t_max, leaves);
             let mut done = false;
-            // (A warp with fewer threads than that in the loop waits for all of them.)
+            // A warp with fewer threads in the loop than that (lavapipe's subgroups of 8, or
+            // the last threads of a workgroup) waits for all of them.
             let wanted = START_TOGETHER.min(crate::subgroup::count(true));
             loop {
                 if !done {
@@ -625,8 +626,9 @@ impl NodeRay {
 
 /// Whether the ray enters a child slot's box (near and far planes) before its end. The
 /// caller selects the slot's hit bits (see [`WideNode::hits`]) with it, without a branch:
-/// every slot is tested, an empty one (meta 0) adding no bits. Branching on empty slots and on the slab
-/// test's outcome (as before 858c4e3) left the CPU two unpredictable branches per child:
+/// every slot is tested, an empty one (meta 0) adding no bits. Branching on empty slots
+/// and on the slab test's outcome (as before 858c4e3) left the CPU two unpredictable
+/// branches per child:
 /// this made the CPU backend's AO 10–30% faster and the GPU's 1.5–2.4% (the 1M suite
 /// scenes; Cornell box AO 2% slower, its MIS the same). The four children's slab tests side
 /// by side in `Vec4`s with a branch-free mask (2c44636) made the CPU backend's AO 17–19%
