@@ -242,7 +242,7 @@ impl<'a> SceneBuffers<'a> {
             let mut walk = CwbvhWalk::new(&ray, t_max, leaves);
             let mut done = false;
             // A warp with fewer threads in the loop than that (lavapipe's subgroups of 8, or
-            // the last threads of a workgroup) waits for all of them.
+            // a warp of which fewer threads found a first ray) waits for all of them.
             let wanted = START_TOGETHER.min(crate::subgroup::count(true));
             loop {
                 if !done {
