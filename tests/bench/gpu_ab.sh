@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# The README's GPU A/B tables: GPU ms per frame of several runner builds (or one build under
+# several environments), each workload run by every variant in turn, the variants' order
+# reversed every other round, so that a clock drop or a warm cache favours none of them.
+# Run it on the device machine from the repository root, the binaries built elsewhere as
+# $DIR/runner-NAME.xz (strip + xz), the Vulkan loader's .debs in .gl/ (device README).
+# usage: VARS="old new new:SOME_ENV=1" [W="ao-rocks mis-cornell ..."] [ROUNDS=2] \
+#        [DIR=.dev] bash tests/bench/gpu_ab.sh
+# A variant is NAME (runner-NAME) or NAME:VAR=VALUE (that build with VAR set).
+set -uo pipefail
+DIR=${DIR:-.dev}
+for f in .gl/*.deb; do dpkg -x "$f" /; done
+ldconfig
+export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
+for v in $VARS; do
+  b=$DIR/runner-${v%%:*}
+  [ -x "$b" ] || { xz -dkf "$b.xz" && chmod +x "$b"; }
+done
+nvidia-smi --query-gpu=name,clocks.sm --format=csv,noheader
+args() { case $1 in
+  ao-cornell) echo "--integrator ao --spp 1 --ao-rays 64 --scene cornell-box" ;;
+  ao-*) echo "--integrator ao --spp 1 --ao-rays 64 --bvh-quality high --scene ${1#ao-}-1m" ;;
+  mis-cornell) echo "--integrator mis --max-depth 8 --spp 1 --bvh-splits 0 --scene cornell-box" ;;
+  nee-many) echo "--integrator nee --max-depth 2 --spp 1 --bvh-splits 0 --scene many-lights" ;;
+  nee-*) echo "--integrator nee --max-depth 2 --spp 1 --bvh-quality high --scene ${1#nee-}-1m" ;;
+  pt-*) echo "--integrator pt --max-depth 8 --spp 1 --bvh-quality high --scene ${1#pt-}-1m" ;;
+  *) echo "unknown workload $1" >&2; exit 2 ;;
+esac; }
+bench() { # variant workload
+  local v=$1 b=${1%%:*} env=()
+  [ "$v" != "$b" ] && env=("${v#*:}")
+  out=$(env "${env[@]}" "$DIR/runner-$b" bench --backend gpu --width 1920 --height 1080 \
+    --runs 5 --warmup 3 $(args "$2") 2>&1)
+  ms=$(echo "$out" | awk '/^ms\/frame/{print $5}')
+  echo "r$round $2 $v ${ms:-FAILED}"
+  [ -z "$ms" ] && echo "$out" | tail -5
+}
+W=${W:-"ao-cornell ao-rocks ao-spheres ao-city ao-grass ao-shell mis-cornell nee-many"}
+rev=""; for v in $VARS; do rev="$v $rev"; done
+for round in $(seq "${ROUNDS:-2}"); do
+  order=$VARS; [ $((round % 2)) = 0 ] && order=$rev
+  for w in $W; do for v in $order; do bench "$v" "$w"; done; done
+done
