@@ -1,5 +1,6 @@
 //! The GPU (SPIR-V through wgpu; lavapipe in CI) and the CPU backend run the same kernel
 //! functions with the same random streams: their images must agree pixel by pixel.
+use runner::ao_order::AoOrder;
 use runner::backend::Backend;
 use runner::cpu::CpuBackend;
 use runner::gpu::{adapters, GpuBackend, GpuContext};
@@ -52,6 +53,7 @@ fn kernel_args(integrator: Integrator, spp: u32) -> KernelOptions {
         ao_rays: 4,
         ao_distance: None,
         ao_sampling: AoSampling::Stratified,
+        ao_order: AoOrder::Auto,
         seed: 7,
     }
 }
@@ -66,10 +68,14 @@ fn gpu_backend(scene: &Scene, w: u32, h: u32) -> GpuBackend {
 }
 
 fn render_both(integrator: Integrator, w: u32, h: u32, spp: u32) -> (Image, Image) {
+    render_both_with(&kernel_args(integrator, spp), w, h)
+}
+
+fn render_both_with(ka: &KernelOptions, w: u32, h: u32) -> (Image, Image) {
+    let (integrator, spp) = (ka.integrator, ka.spp);
     let sa = scene_args(w, h);
-    let ka = kernel_args(integrator, spp);
     let mut scene = load_scene(&sa).unwrap();
-    let params = frame_params(&sa, &ka, &mut scene).unwrap();
+    let params = frame_params(&sa, ka, &mut scene).unwrap();
     let mut gpu = gpu_backend(&scene, w, h);
     let mut cpu = CpuBackend::new(&scene, w, h);
     eprintln!("comparing {} with {}", gpu.describe(), cpu.describe());
@@ -83,7 +89,17 @@ fn ao_gpu_matches_cpu_pixel_by_pixel() {
     // Not a multiple of the 8×8 workgroup: the AO kernel's threads beyond the image
     // trace their neighbours' rays.
     let (w, h, spp) = (61, 45, 4);
-    let (g, c) = render_both(Integrator::Ao, w, h, spp);
+    // Both orders of the GPU's walk (`runner::ao_order`; the CPU's bundles have their own).
+    for ao_order in [AoOrder::Near, AoOrder::Far] {
+        let ka = KernelOptions {
+            ao_order,
+            ..kernel_args(Integrator::Ao, spp)
+        };
+        ao_images_agree(render_both_with(&ka, w, h), w, h);
+    }
+}
+
+fn ao_images_agree((g, c): (Image, Image), w: u32, h: u32) {
     // A pixel's AO is a count of open rays over spp · ao_rays = 16. The two sides compute
     // the same rays, but float rounding (FMA contraction on the GPU) can flip a ray that
     // grazes an edge, changing a pixel by a multiple of 1/16: allow that for very few
@@ -318,7 +334,14 @@ fn ao_workgroup_pool_matches_per_pixel() {
     params.samples = 3;
     let buffers = scene.kernel();
     let mut hits = 0;
-    for (tx, ty) in [(0u32, 0u32), (8, 8)] {
+    // Either walk order (`runner::ao_order`): the same answer for every ray.
+    let orders = [kernels::types::AO_NEAR_FIRST, kernels::types::AO_FAR_FIRST];
+    for (tx, ty, order) in [
+        (0u32, 0u32, orders[0]),
+        (8, 8, orders[0]),
+        (0, 0, orders[1]),
+    ] {
+        params.ao_order = order;
         let words: Vec<_> = (0..GROUP_WORDS).map(|_| Default::default()).collect();
         let barrier = std::sync::Barrier::new(GROUP_THREADS);
         let results: Vec<_> = std::thread::scope(|s| {

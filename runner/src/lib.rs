@@ -1,6 +1,7 @@
 //! The `runner` library: scene loading, the CPU and GPU backends, output, and the command
 //! line on top of them. `main.rs` is a thin shell over it; tests use it directly.
 pub mod accel;
+pub mod ao_order;
 pub mod backend;
 pub mod bench;
 pub mod camera;

@@ -6,6 +6,7 @@ use clap::{Args, ValueEnum};
 use glam::{DVec3, Vec3};
 use kernels::types::FrameParams;
 
+use crate::ao_order::AoOrder;
 use crate::bail;
 use crate::error::Result;
 use crate::integrator::{AoSampling, Integrator, LightSampling, RestirBias};
@@ -183,6 +184,10 @@ pub struct KernelOptions {
     /// AO: how each pixel's occlusion rays are spread over the hemisphere
     #[arg(long, value_enum, default_value_t = AoSampling::Stratified)]
     pub ao_sampling: AoSampling,
+    /// AO: the order the GPU's walk visits a node's children in (the CPU backend's bundles
+    /// have their own; the image is the same)
+    #[arg(long, value_enum, default_value_t = AoOrder::Auto)]
+    pub ao_order: AoOrder,
     /// Random seed: the same command and seed give the same image
     #[arg(long, default_value_t = 0)]
     pub seed: u32,
@@ -416,9 +421,15 @@ pub fn frame_params(
     };
     let [_, env_share, sun_share] =
         crate::light_shares::shares(kernel.light_shares, scene, &params, 0.5 * extent);
+    let ao_order = if kernel.integrator == Integrator::Ao {
+        crate::ao_order::choose(kernel.ao_order, scene, &params)
+    } else {
+        kernels::types::AO_NEAR_FIRST
+    };
     Ok(FrameParams {
         env_light_probability: env_share,
         sun_light_probability: sun_share,
+        ao_order,
         ..params
     })
 }

@@ -11,8 +11,8 @@ use crate::texture::sample_bilinear;
 use crate::types::cwbvh_meta::{FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
 use crate::types::{
     Bvh2Node, CwBvhNode, CwBvhPlanes, GBufferTexel, Light, Material, TextureInfo, Triangle,
-    TriangleShading, INVALID, METAL_THRESHOLD, NORMAL_MAP_HEIGHT, SHADING_BITANGENT_FLIPPED,
-    SHADING_COLOURS, SHADING_NORMALS, SHADING_TANGENTS, SHADING_UVS,
+    TriangleShading, AO_NEAR_FIRST, INVALID, METAL_THRESHOLD, NORMAL_MAP_HEIGHT,
+    SHADING_BITANGENT_FLIPPED, SHADING_COLOURS, SHADING_NORMALS, SHADING_TANGENTS, SHADING_UVS,
 };
 use core::mem::MaybeUninit;
 
@@ -230,7 +230,10 @@ impl<'a> SceneBuffers<'a> {
     /// threads' rays, not the sum of each ray's longest; and where the pool is shared by a
     /// workgroup, a thread takes rays of other pixels once its own are spoken for, so the
     /// sums even out too.
-    pub fn trace_pool<const PLAIN: bool, P: RayPool>(&self, pool: &mut P, t_max: f32) {
+    ///
+    /// `order` (`AO_NEAR_FIRST` or `AO_FAR_FIRST`): the order the walk visits a node's
+    /// children in (`runner::ao_order` chooses it per scene).
+    pub fn trace_pool<const PLAIN: bool, P: RayPool>(&self, pool: &mut P, t_max: f32, order: u32) {
         #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
         if !self.nodes.is_empty() {
             let cut = self.cutouts();
@@ -239,7 +242,7 @@ impl<'a> SceneBuffers<'a> {
                 return;
             }
             let (ray, leaves) = pool.ray(index);
-            let mut walk = CwbvhWalk::new(&ray, t_max, leaves);
+            let mut walk = CwbvhWalk::new(&ray, t_max, leaves, order);
             let mut done = false;
             // A warp with fewer threads in the loop than that (lavapipe's subgroups of 8, or
             // a warp of which fewer threads found a first ray) waits for all of them.
@@ -264,12 +267,13 @@ impl<'a> SceneBuffers<'a> {
                         break;
                     }
                     let (ray, leaves) = pool.ray(index);
-                    walk.restart(&ray, t_max, leaves);
+                    walk.restart(&ray, t_max, leaves, order);
                     done = false;
                 }
             }
             return;
         }
+        let _ = order;
         loop {
             let index = pool.take();
             if index == INVALID {
@@ -866,9 +870,35 @@ pub fn cwbvh_traverse<const PLAIN: bool, N: WideNode>(
     if nodes.is_empty() {
         return Hit::none(t_max);
     }
-    let mut walk = CwbvhWalk::new(ray, t_max, INVALID);
+    let mut walk = CwbvhWalk::new(ray, t_max, INVALID, AO_NEAR_FIRST);
     while !walk.step::<PLAIN, false, N>(triangles, cutouts, nodes, any) {}
     walk.hit
+}
+
+/// Nodes that the pooled AO walk (`SceneBuffers::trace_pool`) visits for `ray`, leaving
+/// triangle `leaves`, to `t_max` with children in `order`: what the GPU's time follows
+/// (README, "Benchmark suite"); the host's pilot (`runner::ao_order`) counts it over
+/// the GPU's own nodes.
+pub fn cwbvh_ao_walk_nodes<const PLAIN: bool, N: WideNode>(
+    triangles: &[UVec4],
+    cutouts: &Cutouts,
+    nodes: &[UVec4],
+    ray: &Ray,
+    (leaves, t_max): (u32, f32),
+    order: u32,
+) -> u32 {
+    if nodes.is_empty() {
+        return 0;
+    }
+    let mut walk = CwbvhWalk::new(ray, t_max, leaves, order);
+    let mut visited = 0;
+    loop {
+        // A step visits a node while its group has interior children left (`step`).
+        visited += (walk.group_bits & INTERIOR_HITS != 0) as u32;
+        if walk.step::<PLAIN, true, N>(triangles, cutouts, nodes, true) {
+            return visited;
+        }
+    }
 }
 
 /// A CWBVH traversal in progress, advanced one node at a time by `step`, so that a caller
@@ -894,7 +924,7 @@ struct CwbvhWalk {
 }
 
 impl CwbvhWalk {
-    fn new(ray: &Ray, t_max: f32, leaves: u32) -> Self {
+    fn new(ray: &Ray, t_max: f32, leaves: u32, order: u32) -> Self {
         let mut walk = Self {
             tester: TriangleTester::new(ray),
             origin: ray.origin,
@@ -907,18 +937,19 @@ impl CwbvhWalk {
             group_base: 0,
             group_bits: 0,
         };
-        walk.restart(ray, t_max, leaves);
+        walk.restart(ray, t_max, leaves, order);
         walk
     }
 
     /// Begin `ray` at the root (the stack's contents are left, unread), never testing
-    /// triangle `leaves`.
-    fn restart(&mut self, ray: &Ray, t_max: f32, leaves: u32) {
+    /// triangle `leaves`, visiting each node's children in `order` (`AO_NEAR_FIRST` or
+    /// `AO_FAR_FIRST`).
+    fn restart(&mut self, ray: &Ray, t_max: f32, leaves: u32, order: u32) {
         count!(TRAVERSALS);
         self.tester = TriangleTester::new(ray);
         self.origin = ray.origin;
         self.inv_dir = safe_recip(ray.dir);
-        self.oct_inv = cwbvh_octant_inv(ray.dir);
+        self.oct_inv = cwbvh_octant_inv(ray.dir) ^ order;
         self.hit = Hit::none(t_max);
         self.leaves = leaves;
         self.sp = 0;

@@ -482,7 +482,9 @@ pub struct FrameParams {
     pub ao_sampling: u32,
     /// Radiance of the sun's disk (zero: no sun).
     pub sun_radiance: [f32; 3],
-    pub _pad_radiance: u32,
+    /// AO: the order the GPU's walk visits a node's children in, `AO_NEAR_FIRST` or
+    /// `AO_FAR_FIRST` (here, where `sun_radiance`'s padding was).
+    pub ao_order: u32,
 }
 
 #[cfg(not(target_arch = "spirv"))]
@@ -500,6 +502,13 @@ pub const AO_STRATIFIED: u32 = 0;
 /// AO rays drawn independently from the whole hemisphere (incoherent: for measuring
 /// traversal on rays that share nothing).
 pub const AO_INDEPENDENT: u32 = 1;
+/// AO walk order (`FrameParams::ao_order`), XORed into the ray's octant: a node's children
+/// front to back along the ray (each ray's nearest boxes first), or back to front. Over
+/// the rays' own walks, which visits fewer nodes depends on the scene: back to front saves
+/// rays from inside a closed shell 13% of their nodes (the far wall blocks them, the
+/// boxes around their origins hardly ever), but costs rays between grass blades 5%.
+pub const AO_NEAR_FIRST: u32 = 0;
+pub const AO_FAR_FIRST: u32 = 7;
 
 pub const ENV_UP_Y: u32 = 0;
 pub const ENV_UP_Z: u32 = 1;

@@ -4,16 +4,18 @@
 # reversed every other round, so that a clock drop or a warm cache favours none of them.
 # Run it on the device machine from the repository root, the binaries built elsewhere as
 # $DIR/runner-NAME.xz (strip + xz), the Vulkan loader's .debs in .gl/ (device README).
-# usage: VARS="old new new:SOME_ENV=1" [W="ao-rocks mis-cornell ..."] [ROUNDS=2] \
-#        [DIR=.dev] bash tests/bench/gpu_ab.sh
-# A variant is NAME (runner-NAME) or NAME:VAR=VALUE (that build with VAR set).
+# usage: VARS="old new new:SOME_ENV=1 new@--ao-order=near" [W="ao-rocks mis-cornell ..."] \
+#        [ROUNDS=2] [DIR=.dev] bash tests/bench/gpu_ab.sh
+# A variant is NAME (runner-NAME), NAME:VAR=VALUE (that build with VAR set) or NAME@ARG
+# (that build with one more bench argument).
 set -uo pipefail
 DIR=${DIR:-.dev}
 for f in .gl/*.deb; do dpkg -x "$f" /; done
 ldconfig
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
+build() { local b=${1%%@*}; echo "${b%%:*}"; }
 for v in $VARS; do
-  b=$DIR/runner-${v%%:*}
+  b=$DIR/runner-$(build "$v")
   [ -x "$b" ] || { xz -dkf "$b.xz" && chmod +x "$b"; }
 done
 nvidia-smi --query-gpu=name,clocks.sm --format=csv,noheader
@@ -27,10 +29,13 @@ args() { case $1 in
   *) echo "unknown workload $1" >&2; exit 2 ;;
 esac; }
 bench() { # variant workload
-  local v=$1 b=${1%%:*} env=()
-  [ "$v" != "$b" ] && env=("${v#*:}")
+  local v=$1 b env=() extra=()
+  b=$(build "$v")
+  [[ $v == *@* ]] && extra=("${v#*@}")
+  local rest=${v%%@*}
+  [[ $rest == *:* ]] && env=("${rest#*:}")
   out=$(env "${env[@]}" "$DIR/runner-$b" bench --backend gpu --width 1920 --height 1080 \
-    --runs 5 --warmup 3 $(args "$2") 2>&1)
+    --runs 5 --warmup 3 $(args "$2") "${extra[@]}" 2>&1)
   ms=$(echo "$out" | awk '/^ms\/frame/{print $5}')
   echo "r$round $2 $v ${ms:-FAILED}"
   [ -z "$ms" ] && echo "$out" | tail -5

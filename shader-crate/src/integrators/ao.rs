@@ -104,7 +104,7 @@ pub fn ambient_occlusion<const PLAIN: bool>(
 }
 
 /// The strata of `params`' AO rays.
-fn strata(params: &FrameParams) -> Strata {
+pub fn strata(params: &FrameParams) -> Strata {
     if params.ao_sampling == AO_INDEPENDENT {
         Strata::NONE
     } else {
@@ -289,7 +289,7 @@ pub fn group_trace<const PLAIN: bool, M: GroupMemory>(
         total: points * params.ao_rays,
         strata: strata(params),
     };
-    scene.trace_pool::<PLAIN, _>(&mut pool, params.ao_distance);
+    scene.trace_pool::<PLAIN, _>(&mut pool, params.ao_distance, params.ao_order);
 }
 
 /// Group phase 3, every thread: the unoccluded fraction of its point's rays; and the
