@@ -74,7 +74,11 @@ pub fn run(args: &ViewArgs, mut scene: Scene) -> Result<()> {
         ))
     })?;
     let copy = present::use_copy(args.present)?;
-    let params = frame_params(&args.scene, &args.kernel, &mut scene)?;
+    let mut params = frame_params(&args.scene, &args.kernel, &mut scene)?;
+    // Keys switch to AO at any time: its walk order is chosen now, whatever runs first.
+    if args.kernel.integrator != Integrator::Ao {
+        params.ao_order = crate::ao_order::choose(args.kernel.ao_order, &scene, &params);
+    }
     let pose = crate::camera::camera_pose(&args.scene, &scene)?;
     let camera = FlyCamera::new(pose.eye, pose.target, pose.up, pose.fov, scene.extent());
     let mut app = App {
