@@ -870,6 +870,7 @@ pub fn cwbvh_traverse<const PLAIN: bool, N: WideNode>(
     if nodes.is_empty() {
         return Hit::none(t_max);
     }
+    // Front to back: a closest hit found early shortens the ray for the rest of the walk.
     let mut walk = CwbvhWalk::new(ray, t_max, INVALID, AO_NEAR_FIRST);
     while !walk.step::<PLAIN, false, N>(triangles, cutouts, nodes, any) {}
     walk.hit
