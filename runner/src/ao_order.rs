@@ -15,13 +15,13 @@
 //! (`kernels::bundle`), whose order is its own; the image is the same in either order.
 use clap::ValueEnum;
 use kernels::bvh::{cwbvh_ao_walk_nodes, cwbvh_traverse, surface_hit, Cutouts};
-use kernels::camera::primary_ray;
 use kernels::glam::UVec4;
 use kernels::integrators::ao::{strata, AoRays};
 use kernels::rng::Rng;
 use kernels::types::{CwBvhNode, FrameParams, AO_FAR_FIRST, AO_NEAR_FIRST};
 use rayon::prelude::*;
 
+use crate::camera::pilot_ray;
 use crate::scene::Scene;
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
@@ -140,9 +140,7 @@ fn pilot_point<const PLAIN: bool>(
     row: u32,
 ) -> PilotCounts {
     let buffers = scene.untraced();
-    let x = (column as f32 + 0.5) / PILOT_COLUMNS as f32 * params.width as f32;
-    let y = (row as f32 + 0.5) / PILOT_ROWS as f32 * params.height as f32;
-    let ray = primary_ray(&params.camera, params.width, params.height, x, y);
+    let ray = pilot_ray(params, (column, row), (PILOT_COLUMNS, PILOT_ROWS));
     let triangles = buffers.triangles;
     let hit = cwbvh_traverse::<PLAIN, CwBvhNode>(triangles, cut, nodes, &ray, f32::INFINITY, false);
     let mut counts = PilotCounts::default();

@@ -107,3 +107,16 @@ pub fn orbit_camera(args: &SceneOptions, scene: &Scene, degrees: f32) -> Result<
         args.width as f32 / args.height as f32,
     ))
 }
+
+/// The camera ray through the centre of cell (column, row) of a `columns` × `rows` grid
+/// spread over `params`' image: the host's pilots (`light_shares`, `ao_order`) look at
+/// the scene through it.
+pub fn pilot_ray(
+    params: &kernels::types::FrameParams,
+    (column, row): (u32, u32),
+    (columns, rows): (u32, u32),
+) -> kernels::intersect::Ray {
+    let x = (column as f32 + 0.5) / columns as f32 * params.width as f32;
+    let y = (row as f32 + 0.5) / rows as f32 * params.height as f32;
+    kernels::camera::primary_ray(&params.camera, params.width, params.height, x, y)
+}

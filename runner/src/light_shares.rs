@@ -24,12 +24,12 @@
 use clap::ValueEnum;
 use glam::Vec3;
 use kernels::bvh::{surface_hit, SceneBuffers};
-use kernels::camera::primary_ray;
 use kernels::integrators::path::direct_nee;
 use kernels::math::luminance;
 use kernels::rng::Rng;
 use kernels::types::{FrameParams, INVALID};
 
+use crate::camera::pilot_ray;
 use crate::scene::Scene;
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
@@ -149,9 +149,7 @@ fn seen(scene: &SceneBuffers, params: &FrameParams) -> [f32; 3] {
     let mut rays = 0;
     for row in 0..PILOT_ROWS {
         for column in 0..PILOT_COLUMNS {
-            let x = (column as f32 + 0.5) / PILOT_COLUMNS as f32 * params.width as f32;
-            let y = (row as f32 + 0.5) / PILOT_ROWS as f32 * params.height as f32;
-            let ray = primary_ray(&params.camera, params.width, params.height, x, y);
+            let ray = pilot_ray(params, (column, row), (PILOT_COLUMNS, PILOT_ROWS));
             let hit = scene.closest_hit::<false>(&ray, f32::INFINITY);
             if !hit.is_hit() {
                 continue;
