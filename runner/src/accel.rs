@@ -5,7 +5,7 @@
 use std::time::{Duration, Instant};
 
 use glam::Vec3A;
-use kernels::types::{Bvh2Node, CwBvhNode, CwBvhPlanes, Triangle};
+use kernels::types::{Bvh2Node, CwBvhNode, Triangle};
 use obvhs::aabb::Aabb;
 use obvhs::ploc::{PlocSearchDistance, SortPrecision};
 use obvhs::{Boundable, BvhBuildParams};
@@ -334,6 +334,7 @@ pub fn host_nodes(nodes: &[kernels::bvh::BvhNode]) -> Vec<glam::UVec4> {
     return nodes
         .iter()
         .flat_map(|n| {
+            use kernels::types::CwBvhPlanes;
             bytemuck::cast::<_, [glam::UVec4; CwBvhPlanes::WORDS]>(CwBvhPlanes::decoded(n))
         })
         .collect();

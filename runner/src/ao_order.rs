@@ -13,15 +13,14 @@
 //! walk over the GPU's own nodes, in both orders, and takes the one that visits fewer
 //! nodes by a clear margin. The CPU backend traces a point's AO rays in bundles
 //! (`kernels::bundle`), whose order is its own; the image is the same in either order.
+// Only the CWBVH walk has an order to choose: the other traversals leave the pilot unused.
+#![cfg_attr(
+    any(feature = "traversal-bvh2", feature = "traversal-brute-force"),
+    allow(dead_code)
+)]
 use clap::ValueEnum;
-use kernels::bvh::{cwbvh_ao_walk_nodes, cwbvh_traverse, surface_hit, Cutouts};
-use kernels::glam::UVec4;
-use kernels::integrators::ao::{strata, AoRays};
-use kernels::rng::Rng;
-use kernels::types::{CwBvhNode, FrameParams, AO_FAR_FIRST, AO_NEAR_FIRST};
-use rayon::prelude::*;
+use kernels::types::{FrameParams, AO_FAR_FIRST, AO_NEAR_FIRST};
 
-use crate::camera::pilot_ray;
 use crate::scene::Scene;
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
@@ -103,12 +102,13 @@ pub fn choose(order: AoOrder, scene: &Scene, params: &FrameParams) -> u32 {
 pub fn pilot(scene: &Scene, params: &FrameParams) -> PilotCounts {
     #[cfg(any(feature = "traversal-bvh2", feature = "traversal-brute-force"))]
     {
-        // Only the CWBVH walk has an order to choose.
         let _ = (scene, params);
         PilotCounts::default()
     }
     #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
     {
+        use kernels::glam::UVec4;
+        use rayon::prelude::*;
         let buffers = scene.untraced();
         let nodes: &[UVec4] = bytemuck::cast_slice(&scene.nodes);
         let cut = buffers.cutouts();
@@ -131,14 +131,20 @@ pub fn pilot(scene: &Scene, params: &FrameParams) -> PilotCounts {
 }
 
 /// The pilot's AO rays of grid point (column, row), counted in both orders.
+#[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
 fn pilot_point<const PLAIN: bool>(
     scene: &Scene,
-    nodes: &[UVec4],
-    cut: &Cutouts,
+    nodes: &[kernels::glam::UVec4],
+    cut: &kernels::bvh::Cutouts,
     params: &FrameParams,
     column: u32,
     row: u32,
 ) -> PilotCounts {
+    use crate::camera::pilot_ray;
+    use kernels::bvh::{cwbvh_ao_walk_nodes, cwbvh_traverse, surface_hit};
+    use kernels::integrators::ao::{strata, AoRays};
+    use kernels::rng::Rng;
+    use kernels::types::CwBvhNode;
     let buffers = scene.untraced();
     let ray = pilot_ray(params, (column, row), (PILOT_COLUMNS, PILOT_ROWS));
     let triangles = buffers.triangles;
