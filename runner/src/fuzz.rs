@@ -38,7 +38,7 @@ pub fn load_and_render_bytes(data: &[u8]) -> Result<crate::output::Image> {
         bvh_splits: None,
     };
     let camera = crate::camera::camera(&args, &scene)?;
-    let params = FrameParams {
+    let mut params = FrameParams {
         camera,
         prev_camera: camera,
         width: 4,
@@ -52,6 +52,8 @@ pub fn load_and_render_bytes(data: &[u8]) -> Result<crate::output::Image> {
         ..Default::default()
     };
     let integrator = if scene.lights.is_empty() {
+        // As `frame_params` does for AO: the walk order's pilot traces the scene too.
+        params.ao_order = crate::ao_order::choose(crate::ao_order::AoOrder::Auto, &scene, &params);
         Integrator::Ao
     } else {
         Integrator::Nee
