@@ -119,9 +119,9 @@ pub fn pilot(scene: &Scene, params: &FrameParams) -> PilotCounts {
                 let mut counts = PilotCounts::default();
                 for column in 0..PILOT_COLUMNS {
                     counts = counts.add(if plain {
-                        pilot_point::<true>(scene, nodes, &cut, params, column, row)
+                        pilot_point::<true>(&buffers, nodes, &cut, params, column, row)
                     } else {
-                        pilot_point::<false>(scene, nodes, &cut, params, column, row)
+                        pilot_point::<false>(&buffers, nodes, &cut, params, column, row)
                     });
                 }
                 counts
@@ -130,10 +130,11 @@ pub fn pilot(scene: &Scene, params: &FrameParams) -> PilotCounts {
     }
 }
 
-/// The pilot's AO rays of grid point (column, row), counted in both orders.
+/// The pilot's AO rays of grid point (column, row), counted in both orders: traced through
+/// `nodes` (the GPU's), the rest of the scene from `buffers`.
 #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
 fn pilot_point<const PLAIN: bool>(
-    scene: &Scene,
+    buffers: &kernels::bvh::SceneBuffers,
     nodes: &[kernels::glam::UVec4],
     cut: &kernels::bvh::Cutouts,
     params: &FrameParams,
@@ -145,7 +146,6 @@ fn pilot_point<const PLAIN: bool>(
     use kernels::integrators::ao::{strata, AoRays};
     use kernels::rng::Rng;
     use kernels::types::CwBvhNode;
-    let buffers = scene.untraced();
     let ray = pilot_ray(params, (column, row), (PILOT_COLUMNS, PILOT_ROWS));
     let triangles = buffers.triangles;
     let hit = cwbvh_traverse::<PLAIN, CwBvhNode>(triangles, cut, nodes, &ray, f32::INFINITY, false);
@@ -153,7 +153,7 @@ fn pilot_point<const PLAIN: bool>(
     if !hit.is_hit() {
         return counts;
     }
-    let s = surface_hit(&buffers, &ray, &hit);
+    let s = surface_hit(buffers, &ray, &hit);
     let mut rng = Rng::new(row * PILOT_COLUMNS + column, 0, 0, params.seed);
     let point = AoRays::new(s.p, s.prim, s.n, &mut rng);
     let strata = strata(params);
