@@ -5,10 +5,10 @@ mod common;
 
 use common::{runner, tmp_dir};
 
-/// Lit pixels of `shell-250k` seen from `view` on `backend` (256 x 256, 16 spp, camera
-/// rays only: 1 M rays).
-fn leaked_pixels(backend: &str, view: &[&str], name: &str) -> usize {
-    let out = tmp_dir("watertight").join(format!("{backend}_{name}.exr"));
+/// Lit pixels of `shell-250k` seen from `view` on `backend` over a BVH of `quality` (256 x
+/// 256, 16 spp, camera rays only: 1 M rays).
+fn leaked_pixels(backend: &str, quality: &str, view: &[&str], name: &str) -> usize {
+    let out = tmp_dir("watertight").join(format!("{backend}_{quality}_{name}.exr"));
     let mut args = vec![
         "render",
         "--backend",
@@ -27,6 +27,8 @@ fn leaked_pixels(backend: &str, view: &[&str], name: &str) -> usize {
         "256",
         "--height",
         "256",
+        "--bvh-quality",
+        quality,
         "--out",
         out.to_str().unwrap(),
     ];
@@ -53,9 +55,13 @@ fn no_ray_slips_out_of_a_closed_sphere() {
             &["--eye", "0.95,0,0", "--target", "1,0,0.01", "--fov", "150"],
         ),
     ];
+    // `high`: the SBVH, whose split triangles' parts meet at the split planes.
     for backend in ["cpu", "gpu"] {
-        for (name, view) in views {
-            assert_eq!(leaked_pixels(backend, view, name), 0, "{backend}, {name}");
+        for quality in ["auto", "high"] {
+            for (name, view) in views {
+                let leaked = leaked_pixels(backend, quality, view, name);
+                assert_eq!(leaked, 0, "{backend}, {quality}, {name}");
+            }
         }
     }
 }

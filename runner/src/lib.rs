@@ -25,6 +25,7 @@ pub mod ply_scene;
 pub mod presplit;
 pub mod render;
 pub mod restir;
+pub mod sbvh;
 pub mod scene;
 pub mod scene_frame;
 pub mod textures;

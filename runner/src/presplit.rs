@@ -40,13 +40,13 @@ pub struct SplitBoxes {
 
 /// A convex polygon: a triangle, or what is left of it inside a box.
 #[derive(Clone, Copy)]
-struct Polygon {
+pub(crate) struct Polygon {
     corners: [Vec3; MAX_CORNERS],
     len: usize,
 }
 
 impl Polygon {
-    fn triangle(t: &Triangle) -> Self {
+    pub(crate) fn triangle(t: &Triangle) -> Self {
         let (p0, p1, p2) = t.vertices();
         let mut corners = [Vec3::ZERO; MAX_CORNERS];
         corners[..3].copy_from_slice(&[p0, p1, p2]);
@@ -57,7 +57,12 @@ impl Polygon {
         &self.corners[..self.len]
     }
 
-    fn bounds(&self) -> (Vec3, Vec3) {
+    /// Whether nothing is left (fewer than 3 corners: clipped away, or only touching).
+    pub(crate) fn is_empty(&self) -> bool {
+        self.len < 3
+    }
+
+    pub(crate) fn bounds(&self) -> (Vec3, Vec3) {
         crate::scene::bounds_of(self.corners().iter().copied())
     }
 
@@ -73,7 +78,7 @@ impl Polygon {
     }
 
     /// The parts below and above `at` on `axis` (Sutherland–Hodgman against one plane).
-    fn cut(&self, axis: usize, at: f32) -> (Self, Self) {
+    pub(crate) fn cut(&self, axis: usize, at: f32) -> (Self, Self) {
         let empty = Self {
             corners: [Vec3::ZERO; MAX_CORNERS],
             len: 0,
