@@ -44,6 +44,10 @@ const MAX_REFS_PER_TRIANGLE: f32 = 2.0;
 /// 64 references): FlightHelmet 7.06 → 6.68, 2.0× → 1.16× the triangles; grass-1m 10.10 →
 /// 9.99, 1.15× → 1.005×; the 1M suite's other scenes the same.
 const SMALL_NODE: usize = 64;
+/// Below this depth the heuristic chooses the splits; from it on, median splits, so that
+/// no input (thousands of nested slivers, which the heuristic peels one by one) makes
+/// the tree, or the build's recursion, deeper than this plus log₂ of the references.
+const MAX_SAH_DEPTH: usize = 64;
 /// Subtrees of more references than this are built in parallel, and their nodes binned in
 /// parallel chunks of this many.
 const PARALLEL_REFS: usize = 4096;
@@ -104,6 +108,8 @@ struct Context<'a> {
     splittable: Vec<bool>,
     pad: &'a (dyn Fn(Vec3, Vec3) -> (Vec3, Vec3) + Sync),
     root_area: f32,
+    /// `MAX_SAH_DEPTH` (tests choose less).
+    max_sah_depth: usize,
     spare_refs: AtomicUsize,
 }
 
@@ -586,14 +592,26 @@ impl Out {
 }
 
 /// Build the subtree of `refs` (in box `node`) into `out`'s node `slot`.
-fn build_node(ctx: &Context, refs: Vec<Ref>, node: Bounds, out: &mut Out, slot: usize) {
+fn build_node(
+    ctx: &Context,
+    refs: Vec<Ref>,
+    node: Bounds,
+    depth: usize,
+    out: &mut Out,
+    slot: usize,
+) {
     if refs.len() <= 1 {
         out.nodes[slot] = Bvh2Node::new(node.aabb(), refs.len() as u32, out.prims.len() as u32);
         out.prims.extend(refs.iter().map(|r| r.tri));
         return;
     }
     let many = refs.len() > PARALLEL_REFS;
-    let (left, right) = match best_split(ctx, &refs, node) {
+    let split = if depth < ctx.max_sah_depth {
+        best_split(ctx, &refs, node)
+    } else {
+        None
+    };
+    let (left, right) = match split {
         Some(Split::Sorted { axis, count, .. }) => {
             let mut refs = refs;
             sort_on(&mut refs, axis);
@@ -632,15 +650,15 @@ fn build_node(ctx: &Context, refs: Vec<Ref>, node: Bounds, out: &mut Out, slot: 
     if many {
         let sub = |refs: Vec<Ref>, b: Bounds| {
             let mut o = Out::with_root();
-            build_node(ctx, refs, b, &mut o, 0);
+            build_node(ctx, refs, b, depth + 1, &mut o, 0);
             o
         };
         let (l, r) = rayon::join(|| sub(left, lb), || sub(right, rb));
         out.attach(first, l);
         out.attach(first + 1, r);
     } else {
-        build_node(ctx, left, lb, out, first);
-        build_node(ctx, right, rb, out, first + 1);
+        build_node(ctx, left, lb, depth + 1, out, first);
+        build_node(ctx, right, rb, depth + 1, out, first + 1);
     }
 }
 
@@ -655,6 +673,18 @@ pub fn build(
     refs: &[u32],
     pad: &(dyn Fn(Vec3, Vec3) -> (Vec3, Vec3) + Sync),
     splittable: &(dyn Fn(&Triangle) -> bool + Sync),
+) -> Bvh2 {
+    build_to_depth(triangles, boxes, refs, pad, splittable, MAX_SAH_DEPTH)
+}
+
+/// `build`, the heuristic choosing the splits down to depth `max_sah_depth`.
+fn build_to_depth(
+    triangles: &[Triangle],
+    boxes: &[(Vec3, Vec3)],
+    refs: &[u32],
+    pad: &(dyn Fn(Vec3, Vec3) -> (Vec3, Vec3) + Sync),
+    splittable: &(dyn Fn(&Triangle) -> bool + Sync),
+    max_sah_depth: usize,
 ) -> Bvh2 {
     let refs: Vec<Ref> = boxes
         .iter()
@@ -677,12 +707,13 @@ pub fn build(
             .collect(),
         pad,
         root_area: root.half_area(),
+        max_sah_depth,
         spare_refs: AtomicUsize::new(
             ((MAX_REFS_PER_TRIANGLE - 1.0) * triangles.len() as f32) as usize,
         ),
     };
     let mut out = Out::with_root();
-    build_node(&ctx, refs, root, &mut out, 0);
+    build_node(&ctx, refs, root, 0, &mut out, 0);
     Bvh2 {
         nodes: out.nodes,
         primitive_indices: out.prims,
@@ -738,6 +769,14 @@ mod tests {
     }
 
     fn build_of(tris: &[Triangle], splittable: &(dyn Fn(&Triangle) -> bool + Sync)) -> Bvh2 {
+        build_with(tris, splittable, MAX_SAH_DEPTH)
+    }
+
+    fn build_with(
+        tris: &[Triangle],
+        splittable: &(dyn Fn(&Triangle) -> bool + Sync),
+        max_sah_depth: usize,
+    ) -> Bvh2 {
         let pad = |lo: Vec3, hi: Vec3| (lo - Vec3::splat(1e-4), hi + Vec3::splat(1e-4));
         let boxes: Vec<_> = tris
             .iter()
@@ -749,7 +788,7 @@ mod tests {
             })
             .collect();
         let refs: Vec<u32> = (0..tris.len() as u32).collect();
-        build(tris, &boxes, &refs, &pad, splittable)
+        build_to_depth(tris, &boxes, &refs, &pad, splittable, max_sah_depth)
     }
 
     fn area(a: &Aabb) -> f32 {
@@ -794,6 +833,35 @@ mod tests {
             split < 0.98 * unsplit,
             "SAH {split} with splits, {unsplit} without"
         );
+    }
+
+    fn depth(bvh: &Bvh2, node: usize) -> usize {
+        let n = &bvh.nodes[node];
+        if n.is_leaf() {
+            return 1;
+        }
+        let first = n.first_index as usize;
+        1 + depth(bvh, first).max(depth(bvh, first + 1))
+    }
+
+    #[test]
+    fn below_the_depth_limit_the_splits_are_medians() {
+        let tris = scene();
+        let free = build_of(&tris, &|_| true);
+        let n = free.primitive_indices.len() as f32;
+        // The heuristic alone goes deeper than median splits below depth 2 would.
+        let limited_depth = 2 + n.log2().ceil() as usize + 1;
+        assert!(depth(&free, 0) > limited_depth, "{}", depth(&free, 0));
+        let limited = build_with(&tris, &|_| true, 2);
+        assert!(
+            depth(&limited, 0) <= limited_depth,
+            "{}",
+            depth(&limited, 0)
+        );
+        let mut seen = limited.primitive_indices.clone();
+        seen.sort_unstable();
+        seen.dedup();
+        assert_eq!(seen.len(), tris.len(), "every triangle in a leaf");
     }
 
     #[test]
