@@ -85,7 +85,8 @@ fn light_selection_follows_power_and_uniform_pdfs() {
         let o = Vec3::new(i as f32, 0.0, 0.0);
         tris.push(Triangle::new(o, o + Vec3::X * s, o + Vec3::Y * s, i + 1));
     }
-    let lights = build_light_table(&mut tris, &materials, &Default::default());
+    let order: Vec<u32> = (0..tris.len() as u32).collect();
+    let lights = build_light_table(&mut tris, &order, &materials, &Default::default());
     assert_eq!(lights.len(), 50);
     let total: f32 = lights.iter().map(|l| l.pdf).sum();
     assert!((total - 1.0).abs() < 1e-5);
@@ -134,7 +135,8 @@ fn light_selection_is_exact_for_many_lights() {
         let o = Vec3::new(i as f32, 0.0, 0.0);
         tris.push(Triangle::new(o, o + Vec3::X, o + Vec3::Y, i as u32 + 1));
     }
-    let lights = build_light_table(&mut tris, &materials, &Default::default());
+    let order: Vec<u32> = (0..tris.len() as u32).collect();
+    let lights = build_light_table(&mut tris, &order, &materials, &Default::default());
     assert_eq!(lights.len(), n);
     let two32 = 2f64.powi(32);
     let two24 = 2f64.powi(24);

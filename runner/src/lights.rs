@@ -43,23 +43,33 @@ pub fn power(scene: &SceneBuffers, triangle: u32) -> f32 {
     mean.max(MIN_TEXTURED_POWER * factor) * tri.area()
 }
 
-/// Build the light table for `triangles` and write each emitter's table index into its
-/// `light` field (INVALID elsewhere).
+/// Build the light table for `triangles` (in leaf order: slot i holds input triangle
+/// `order[i]`) and write each emitter's table index into its `light` field (INVALID
+/// elsewhere). The table lists the emitters in input order, so that the same random
+/// numbers pick the same emitter whatever BVH put the triangles in their slots: NEE's
+/// images do not depend on the tree.
 pub fn build_light_table(
     triangles: &mut [Triangle],
+    order: &[u32],
     materials: &[Material],
     attributes: &SurfaceAttributes,
 ) -> Vec<Light> {
-    let mut lights: Vec<Light> = Vec::new();
+    let mut emitters: Vec<u32> = Vec::new();
     for (i, t) in triangles.iter_mut().enumerate() {
         t.light = INVALID;
         if materials[t.material as usize].is_emissive() {
-            t.light = lights.len() as u32;
-            lights.push(Light {
-                triangle: i as u32,
-                ..Default::default()
-            });
+            emitters.push(i as u32);
         }
+    }
+    // Emitters are never split (`accel::build`'s `splittable`): one slot each.
+    emitters.sort_unstable_by_key(|&slot| order[slot as usize]);
+    let mut lights: Vec<Light> = Vec::with_capacity(emitters.len());
+    for slot in emitters {
+        triangles[slot as usize].light = lights.len() as u32;
+        lights.push(Light {
+            triangle: slot,
+            ..Default::default()
+        });
     }
     let view = SceneBuffers {
         triangles: bytemuck::cast_slice(triangles),

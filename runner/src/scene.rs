@@ -277,7 +277,8 @@ impl Scene {
         }
         let triangle_count = triangles.len();
         let mut triangles = crate::accel::reorder(&triangles, &bvh.order);
-        let lights = crate::lights::build_light_table(&mut triangles, &materials, &attributes);
+        let lights =
+            crate::lights::build_light_table(&mut triangles, &bvh.order, &materials, &attributes);
         Ok(Self {
             triangles,
             triangle_count,
