@@ -8,10 +8,16 @@ use crate::options::{SceneOptions, UpAxis};
 
 /// The fuzzing harness: bytes → a PLY file (when they begin with `ply`), a glTF file (`glTF`
 /// or `{`: buffers and images embedded) or OBJ (and MTL
-/// after the first 0xFF byte) → scene and BVH → a 4×4 CPU render with NEE (or AO when there
+/// after the first 0xFF byte) → scene and BVH (either builder) → a 4×4 CPU render with NEE (or AO when there
 /// are no emitters). Bad input must come back as an `Err`, never a panic, a hang or a
 /// non-finite pixel.
 pub fn load_and_render_bytes(data: &[u8]) -> Result<crate::output::Image> {
+    // Inputs of odd length build the SBVH of `--bvh-quality high`, the others PLOC.
+    crate::accel::set_quality(if data.len() % 2 == 1 {
+        crate::accel::BvhQuality::High
+    } else {
+        crate::accel::BvhQuality::Auto
+    });
     let scene = if data.starts_with(b"ply") {
         crate::ply_scene::parse_ply_bytes("fuzz.ply", data.to_vec())?
     } else if data.starts_with(b"glTF") || data.starts_with(b"{") {
