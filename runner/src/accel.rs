@@ -53,7 +53,7 @@ use glam::Vec3;
 /// `high`, a top-down SBVH), then reinsertion (Meister & Bittner 2018), which moves
 /// subtrees to where they cost the traversal least. On one core here, 1M triangles take
 /// 0.35 s of PLOC, 0.4 s of conversion to CWBVH and 0.1 s (none) to 5 s (every node) of
-/// reinsertion; the SBVH 3.8–4.9 s on two cores.
+/// reinsertion; the SBVH 3.2–5.2 s on two cores.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum BvhQuality {
     /// Every node considered for reinsertion up to `AUTO_FULL_TRIANGLES` triangles, a
@@ -65,9 +65,9 @@ pub enum BvhQuality {
     Fast,
     /// A top-down build with spatial splits (`sbvh`, CWBVH traversal only), every node
     /// considered for reinsertion: for long renders of large scenes. Against PLOC with
-    /// full reinsertion (what `high` was before), its AO rays visit 10–12% fewer nodes on
-    /// city-1m, grass-1m and FlightHelmet, 5% on shell-1m, within 2% on most others and
-    /// 9% more on many-lights (README, "SBVH")
+    /// full reinsertion (what `high` was before), its AO rays visit 8–12% fewer nodes on
+    /// city-1m, grass-1m and FlightHelmet, 5% on shell-1m, up to 18% on small scenes, and
+    /// at most 2% more on any scene measured (README, "SBVH")
     High,
 }
 

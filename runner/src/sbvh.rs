@@ -425,7 +425,10 @@ fn sort_on(refs: &mut [Ref], axis: usize) {
 }
 
 /// The cheapest object split of a small node (at least 2 references): every place in
-/// the order of the centres on each axis.
+/// the order of the centres on each axis between two different centres (a median split
+/// where all are the same). Splitting between equal centres — the two triangles of an
+/// axis-aligned quad — cost many-lights' AO rays 7% more nodes (3.04 per ray against
+/// 2.83).
 fn sorted_split(refs: &[Ref]) -> Split {
     let n = refs.len();
     let mut order = refs.to_vec();
@@ -446,6 +449,10 @@ fn sorted_split(refs: &[Ref]) -> Split {
         let mut left = Bounds::EMPTY;
         for count in 1..n {
             left = left.union(order[count - 1].b);
+            let centre = |i: usize| order[i].b.centre()[axis];
+            if centre(count - 1) == centre(count) {
+                continue; // as bins would, equal centres stay together
+            }
             let cost = left.half_area() * count as f32 + right_area[count] * (n - count) as f32;
             if cost < best.cost() {
                 best = Split::Sorted { axis, count, cost };
