@@ -929,6 +929,11 @@ fn scenes_too_large_for_memory_are_refused_with_numbers() {
             "render --backend cpu --scene rocks-20m --out {}",
             dir().join("never.png").display()
         ),
+        // Within PLOC's estimate (1.6 GB), not the SBVH's (2.4 GB).
+        format!(
+            "render --backend cpu --scene rocks-5m --bvh-quality high --out {}",
+            dir().join("never.png").display()
+        ),
     ] {
         let o = Command::new("sh")
             .arg("-c")

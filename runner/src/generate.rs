@@ -132,9 +132,9 @@ pub fn builtin(name: &str) -> Option<Result<Generated>> {
                 .iter()
                 .find_map(|(prefix, f)| Some((name.strip_prefix(prefix)?, *f)))?;
             Some(match parse_count(kind) {
-                Some(count) => crate::memory::check(
+                Some(count) => crate::memory::check_scene(
                     name,
-                    count as u64 * crate::memory::BYTES_PER_SCENE_TRIANGLE,
+                    count as f64 * crate::memory::BYTES_PER_SCENE_TRIANGLE as f64,
                 )
                 .map(|()| n(count)),
                 None => Err(crate::error::Error(format!(

@@ -166,9 +166,9 @@ pub fn load(path: &Path) -> Result<Scene> {
             md.len()
         );
     }
-    crate::memory::check(
+    crate::memory::check_scene(
         &format!("scene '{name}'"),
-        (md.len() as f64 * crate::memory::BYTES_PER_OBJ_BYTE) as u64,
+        md.len() as f64 * crate::memory::BYTES_PER_OBJ_BYTE,
     )?;
     guarded(&name, || from_import(&name, gltf::import(path)))
 }

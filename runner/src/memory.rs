@@ -6,7 +6,8 @@ use crate::error::Result;
 
 /// Peak bytes per triangle of building and rendering a scene (triangles, their leaf-ordered
 /// copy, obvhs's build, BVH nodes, light table): rocks-1m (998,404 triangles) peaked at
-/// 315 MB on the CPU backend.
+/// 315 MB on the CPU backend. Measured with PLOC's build; `check_scene` scales it for the
+/// SBVH's.
 pub const BYTES_PER_SCENE_TRIANGLE: u64 = 320;
 /// Peak bytes per byte of an OBJ file while it is read and built (text, tobj's arrays, the
 /// scene): a 122 MB OBJ of rocks-1m peaked at 623 MB.
@@ -54,6 +55,22 @@ fn page_size() -> u64 {
     } else {
         4096
     }
+}
+
+/// How much more a build at `--bvh-quality high` (the SBVH: its references, their parts'
+/// copies while a node is partitioned, the refined tree) peaks at than PLOC's: rocks-1m
+/// and city-1m 511 and 502 MB against 348 and 349 MB.
+const SBVH_PEAK_FACTOR: f64 = 1.5;
+
+/// `check` for loading scene `what`, whose peak with PLOC's build is estimated at
+/// `bytes`: scaled for the build of the quality chosen (`accel::quality`).
+pub fn check_scene(what: &str, bytes: f64) -> Result<()> {
+    let factor = if crate::accel::quality() == crate::accel::BvhQuality::High {
+        SBVH_PEAK_FACTOR
+    } else {
+        1.0
+    };
+    check(what, (bytes * factor) as u64)
 }
 
 /// Fail with the numbers if `what` needs more than the memory available.

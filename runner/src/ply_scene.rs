@@ -73,9 +73,9 @@ fn vertex_colour(v: &ply_rs_bw::ply::DefaultElement) -> Option<Vec3> {
 pub fn load(path: &Path) -> Result<Scene> {
     let name = path.display().to_string();
     if let Ok(md) = std::fs::metadata(path) {
-        crate::memory::check(
+        crate::memory::check_scene(
             &format!("scene '{name}'"),
-            (md.len() as f64 * BYTES_PER_PLY_BYTE) as u64,
+            md.len() as f64 * BYTES_PER_PLY_BYTE,
         )?;
     }
     let bytes = match read_input_file(path, MAX_PLY_BYTES) {

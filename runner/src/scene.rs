@@ -578,7 +578,7 @@ fn load_mtl_file(path: &Path) -> Result<tobj::MTLLoadResult> {
 pub fn load_obj(path: &Path) -> Result<Scene> {
     if let Ok(md) = std::fs::metadata(path) {
         let needed = md.len() as f64 * crate::memory::BYTES_PER_OBJ_BYTE;
-        crate::memory::check(&format!("scene '{}'", path.display()), needed as u64)?;
+        crate::memory::check_scene(&format!("scene '{}'", path.display()), needed)?;
     }
     let bytes = match read_input_file(path, MAX_OBJ_BYTES) {
         Ok(bytes) => bytes,
