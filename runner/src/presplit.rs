@@ -310,6 +310,7 @@ fn split(
 mod tests {
     use super::*;
     use kernels::rng::Rng;
+    use kernels::sampling::uniform_triangle;
 
     /// A huge ground triangle under small ones of random size, place and orientation,
     /// and a long sliver across it.
@@ -362,10 +363,7 @@ mod tests {
                 .iter()
                 .all(|&(lo, hi)| inside(whole, lo, 0.0) && inside(whole, hi, 0.0)));
             for _ in 0..2000 {
-                let (mut u, mut v) = (rng.next_f32(), rng.next_f32());
-                if u + v > 1.0 {
-                    (u, v) = (1.0 - u, 1.0 - v);
-                }
+                let (u, v) = uniform_triangle(rng.next_f32(), rng.next_f32());
                 let p = p0 + (p1 - p0) * u + (p2 - p0) * v;
                 assert!(
                     boxes.iter().any(|&b| inside(b, p, tolerance)),

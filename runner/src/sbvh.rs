@@ -733,6 +733,7 @@ fn build_to_depth(
 mod tests {
     use super::*;
     use kernels::rng::Rng;
+    use kernels::sampling::uniform_triangle;
 
     /// A huge ground of two triangles, long diagonal slivers over it, and
     /// small triangles of random size, place and orientation.
@@ -899,10 +900,7 @@ mod tests {
         for (i, t) in tris.iter().enumerate() {
             let (p0, p1, p2) = t.vertices();
             for _ in 0..500 {
-                let (mut u, mut v) = (rng.next_f32(), rng.next_f32());
-                if u + v > 1.0 {
-                    (u, v) = (1.0 - u, 1.0 - v);
-                }
+                let (u, v) = uniform_triangle(rng.next_f32(), rng.next_f32());
                 let p = p0 + (p1 - p0) * u + (p2 - p0) * v;
                 assert!(
                     leaves_of[i].iter().any(|b| inside(b, p)),
