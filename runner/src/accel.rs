@@ -63,11 +63,12 @@ pub enum BvhQuality {
     Auto,
     /// No reinsertion: the quickest build (interactive edits, huge scenes, short renders)
     Fast,
-    /// A top-down build with spatial splits (`sbvh`, CWBVH traversal only), every node
-    /// considered for reinsertion: for long renders of large scenes. Against PLOC with
-    /// full reinsertion (what `high` was before), its AO rays visit 8–12% fewer nodes on
-    /// city-1m, grass-1m and FlightHelmet, 5% on shell-1m, up to 18% on small scenes, and
-    /// at most 2% more on any scene measured (README, "SBVH")
+    /// A top-down build with spatial splits (SBVH) and every node considered for
+    /// reinsertion: rays visit up to 8–12% fewer nodes where triangles are long or thin,
+    /// for 1–3× the build time of PLOC with full reinsertion and 1.5× its memory; for
+    /// long renders of large scenes
+    // (Against PLOC with full reinsertion, `high` before it: README, "SBVH". The BVH2
+    // traversal feature builds PLOC at every quality.)
     High,
 }
 
