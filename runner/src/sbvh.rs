@@ -363,7 +363,8 @@ fn best_split(ctx: &Context, refs: &[Ref], node: Bounds) -> Option<Split> {
         return Some(sorted_split(refs));
     }
     let centres = centres_of(refs);
-    let bins = object_bins(refs, CentreBins::new(centres));
+    let centre_bins = CentreBins::new(centres);
+    let bins = object_bins(refs, centre_bins);
     let mut best: Option<Split> = None;
     for (axis, axis_bins) in bins.iter().enumerate() {
         if centres.hi[axis] <= centres.lo[axis] {
@@ -375,7 +376,7 @@ fn best_split(ctx: &Context, refs: &[Ref], node: Bounds) -> Option<Split> {
             if best.is_none_or(|b| cost < b.cost()) {
                 best = Some(Split::Object {
                     axis,
-                    bins: CentreBins::new(centres),
+                    bins: centre_bins,
                     last: plane - 1,
                     cost,
                     left,
@@ -464,8 +465,8 @@ fn sorted_split(refs: &[Ref]) -> Split {
 
 /// Split `refs` by the spatial plane `plane` on `axis`: references on one side go there;
 /// a straddling one is split in two, or goes whole to one side where the heuristic says
-/// that costs less (Stich et al. §4.4). None where a side would be empty or the spare
-/// references run out.
+/// that costs less (Stich et al. §4.4). The references back (`Err`) where a side would be
+/// empty or the spare references run out.
 #[allow(clippy::too_many_arguments)]
 fn spatial_partition(
     ctx: &Context,
