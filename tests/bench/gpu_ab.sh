@@ -7,7 +7,8 @@
 # usage: VARS="old new new:SOME_ENV=1 new@--ao-order=near" [W="ao-rocks mis-cornell ..."] \
 #        [ROUNDS=2] [DIR=.dev] bash tests/bench/gpu_ab.sh
 # A variant is NAME (runner-NAME), NAME:VAR=VALUE (that build with VAR set) or NAME@ARG
-# (that build with one more bench argument).
+# (that build with one more bench argument). A workload is one of the names in args() below,
+# or KIND:SCENE (KIND ao, nee, mis or pt as below, at --bvh-quality high, on any scene).
 set -uo pipefail
 DIR=${DIR:-.dev}
 for f in .gl/*.deb; do dpkg -x "$f" /; done
@@ -20,6 +21,10 @@ for v in $VARS; do
 done
 nvidia-smi --query-gpu=name,clocks.sm --format=csv,noheader
 args() { case $1 in
+  ao:*) echo "--integrator ao --spp 1 --ao-rays 64 --bvh-quality high --scene ${1#*:}" ;;
+  nee:*) echo "--integrator nee --max-depth 2 --spp 1 --bvh-quality high --scene ${1#*:}" ;;
+  mis:*) echo "--integrator mis --max-depth 8 --spp 1 --bvh-quality high --scene ${1#*:}" ;;
+  pt:*) echo "--integrator pt --max-depth 8 --spp 1 --bvh-quality high --scene ${1#*:}" ;;
   ao-cornell) echo "--integrator ao --spp 1 --ao-rays 64 --scene cornell-box" ;;
   ao-*) echo "--integrator ao --spp 1 --ao-rays 64 --bvh-quality high --scene ${1#ao-}-1m" ;;
   mis-cornell) echo "--integrator mis --max-depth 8 --spp 1 --bvh-splits 0 --scene cornell-box" ;;
