@@ -26,11 +26,10 @@ args() { case $1 in
   mis:*) echo "--integrator mis --max-depth 8 --spp 1 --bvh-quality high --scene ${1#*:}" ;;
   pt:*) echo "--integrator pt --max-depth 8 --spp 1 --bvh-quality high --scene ${1#*:}" ;;
   ao-cornell) echo "--integrator ao --spp 1 --ao-rays 64 --scene cornell-box" ;;
-  ao-*) echo "--integrator ao --spp 1 --ao-rays 64 --bvh-quality high --scene ${1#ao-}-1m" ;;
   mis-cornell) echo "--integrator mis --max-depth 8 --spp 1 --bvh-splits 0 --scene cornell-box" ;;
   nee-many) echo "--integrator nee --max-depth 2 --spp 1 --bvh-splits 0 --scene many-lights" ;;
-  nee-*) echo "--integrator nee --max-depth 2 --spp 1 --bvh-quality high --scene ${1#nee-}-1m" ;;
-  pt-*) echo "--integrator pt --max-depth 8 --spp 1 --bvh-quality high --scene ${1#pt-}-1m" ;;
+  # KIND-NAME: KIND:NAME-1m, a suite scene
+  ao-* | nee-* | pt-*) args "${1%%-*}:${1#*-}-1m" ;;
   *) echo "unknown workload $1" >&2; exit 2 ;;
 esac; }
 bench() { # variant workload
