@@ -4,6 +4,7 @@
 # reversed every other round, so that a clock drop or a warm cache favours none of them.
 # Run it on the device machine from the repository root, the binaries built elsewhere as
 # $DIR/runner-NAME.xz (strip + xz), the Vulkan loader's .debs in .gl/ (device README).
+# Each line: round, workload, variant, median GPU ms per frame, the BVH build time.
 # usage: VARS="old new new:SOME_ENV=1 new@--ao-order=near" [W="ao-rocks mis-cornell ..."] \
 #        [ROUNDS=2] [DIR=.dev] bash tests/bench/gpu_ab.sh
 # A variant is NAME (runner-NAME), NAME:VAR=VALUE (that build with VAR set) or NAME@ARG
@@ -41,7 +42,8 @@ bench() { # variant workload
   out=$(env "${env[@]}" "$DIR/runner-$b" bench --backend gpu --width 1920 --height 1080 \
     --runs 5 --warmup 3 $(args "$2") "${extra[@]}" 2>&1)
   ms=$(echo "$out" | awk '/^ms\/frame/{print $5}')
-  echo "r$round $2 $v ${ms:-FAILED}"
+  # the BVH's build time after the ms, for the tables' build column
+  echo "r$round $2 $v ${ms:-FAILED} $(echo "$out" | grep -o 'build [0-9.]* ms')"
   [ -z "$ms" ] && echo "$out" | tail -5
 }
 W=${W:-"ao-cornell ao-rocks ao-spheres ao-city ao-grass ao-shell mis-cornell nee-many"}
