@@ -56,27 +56,40 @@ use glam::Vec3;
 /// reinsertion; the SBVH 3.2–5.2 s on two cores.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum BvhQuality {
-    /// Every node considered for reinsertion up to `AUTO_FULL_TRIANGLES` triangles, a
-    /// share that keeps the reinsertion work constant above: loading stays ~1 s per
-    /// million triangles on one core
+    /// Up to `AUTO_FULL_TRIANGLES` triangles what `high` builds; above, PLOC with a share
+    /// of nodes considered for reinsertion that keeps the reinsertion work constant:
+    /// loading stays ~1 s per million triangles on one core
     #[default]
     Auto,
     /// No reinsertion: the quickest build (interactive edits, huge scenes, short renders)
     Fast,
     /// A top-down build with spatial splits (SBVH) and every node considered for
-    /// reinsertion: rays visit up to 8–12% fewer nodes where triangles are long or thin,
-    /// for 1–3× the build time of PLOC with full reinsertion and 1.5× its memory; for
-    /// long renders of large scenes
+    /// reinsertion: rays visit up to 8–12% fewer nodes where triangles are long or thin
+    /// (AO on the H100 up to 13% faster), for 1–3× the build time of PLOC with full
+    /// reinsertion and 1.5× its memory; for long renders of large scenes
     // (Against PLOC with full reinsertion, `high` before it: README, "SBVH". The BVH2
     // traversal feature builds PLOC at every quality.)
     High,
 }
 
-/// Scenes up to this size get full reinsertion under `auto`; above it the share of nodes
-/// considered shrinks as 1/n. Measured on the H100 (AO 64 rays/px, 1080p, 1M triangles),
-/// full against a 10% share: city-1m and grass-1m ~13–16% faster traversal, rocks-1m and
-/// spheres-1m ~1%; the build on one core 5 s against ~1 s.
+/// Scenes up to this size get `high`'s build (the SBVH) under `auto`; above it PLOC, with
+/// a share of nodes considered for reinsertion that shrinks as 1/n. Measured on the H100
+/// (AO 64 rays/px, 1080p, 1M triangles), full reinsertion against a 10% share: city-1m and
+/// grass-1m ~13–16% faster traversal, rocks-1m and spheres-1m ~1%; the build on one core
+/// 5 s against ~1 s. The SBVH against PLOC with full reinsertion, up to this size (H100,
+/// AO): light-hall 11%, FlightHelmet 11%, grass-100k 9%, city-100k 7% faster, rocks-50k
+/// and the Cornell box the same; its build 0.27 → 0.81 s for FlightHelmet's 95k triangles
+/// on two cores.
 const AUTO_FULL_TRIANGLES: usize = 100_000;
+
+/// Whether a build of `quality` over `triangles` triangles is the SBVH (else PLOC).
+pub fn builds_sbvh(quality: BvhQuality, triangles: usize) -> bool {
+    match quality {
+        BvhQuality::Fast => false,
+        BvhQuality::High => true,
+        BvhQuality::Auto => triangles <= AUTO_FULL_TRIANGLES,
+    }
+}
 
 /// The quality every build of this process uses (`set_quality`): one setting for the five
 /// loaders and the built-in scenes alike, the way a thread count is.
@@ -291,15 +304,16 @@ pub fn build_cwbvh(
     let mut of_triangles = false;
     let mut bvh = if crowded {
         balanced_tree()
-    } else if quality == BvhQuality::High {
+    } else if builds_sbvh(quality, triangles.len()) {
         of_triangles = true;
         let corners: Vec<(Vec3, Vec3)> = boxes
             .iter()
             .map(|b| (Vec3::from(b.0.min), Vec3::from(b.0.max)))
             .collect();
         let mut bvh2 = crate::sbvh::build(triangles, &corners, &refs, &pad, splittable);
-        let share = reinsertion_share(quality, bvh2.primitive_indices.len());
-        ReinsertionOptimizer::default().run(&mut bvh2, share, None);
+        // Every node considered, as at `high`: `auto` builds the SBVH only up to
+        // `AUTO_FULL_TRIANGLES` triangles (whose references may be more).
+        ReinsertionOptimizer::default().run(&mut bvh2, 1.0, None);
         obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(&bvh2, 3, true, false)
     } else {
         obvhs::cwbvh::builder::build_cwbvh(

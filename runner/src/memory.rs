@@ -63,7 +63,8 @@ fn page_size() -> u64 {
 const SBVH_PEAK_FACTOR: f64 = 1.5;
 
 /// `check` for loading scene `what`, whose peak with PLOC's build is estimated at
-/// `bytes`: scaled for the build of the quality chosen (`accel::quality`).
+/// `bytes`: scaled for the build of the quality chosen (`accel::quality`). (`auto` builds
+/// the SBVH too, but only up to 100k triangles: 16 MB more at most, not worth a factor.)
 pub fn check_scene(what: &str, bytes: f64) -> Result<()> {
     let factor = if crate::accel::quality() == crate::accel::BvhQuality::High {
         SBVH_PEAK_FACTOR
