@@ -9,7 +9,8 @@
 #        [ROUNDS=2] [DIR=.dev] bash tests/bench/gpu_ab.sh
 # A variant is NAME (runner-NAME), NAME:VAR=VALUE (that build with VAR set) or NAME@ARG
 # (that build with one more bench argument). A workload is one of the names in args() below,
-# or KIND:SCENE (KIND ao, nee, mis or pt as below, at --bvh-quality high, on any scene).
+# or KIND:SCENE (KIND ao, nee, mis or pt as below, at --bvh-quality high unless the variant
+# says otherwise, on any scene).
 set -uo pipefail
 DIR=${DIR:-.dev}
 for f in .gl/*.deb; do dpkg -x "$f" /; done
@@ -22,10 +23,10 @@ for v in $VARS; do
 done
 nvidia-smi --query-gpu=name,clocks.sm --format=csv,noheader
 args() { case $1 in
-  ao:*) echo "--integrator ao --spp 1 --ao-rays 64 --bvh-quality high --scene ${1#*:}" ;;
-  nee:*) echo "--integrator nee --max-depth 2 --spp 1 --bvh-quality high --scene ${1#*:}" ;;
-  mis:*) echo "--integrator mis --max-depth 8 --spp 1 --bvh-quality high --scene ${1#*:}" ;;
-  pt:*) echo "--integrator pt --max-depth 8 --spp 1 --bvh-quality high --scene ${1#*:}" ;;
+  ao:*) echo "--integrator ao --spp 1 --ao-rays 64 $quality --scene ${1#*:}" ;;
+  nee:*) echo "--integrator nee --max-depth 2 --spp 1 $quality --scene ${1#*:}" ;;
+  mis:*) echo "--integrator mis --max-depth 8 --spp 1 $quality --scene ${1#*:}" ;;
+  pt:*) echo "--integrator pt --max-depth 8 --spp 1 $quality --scene ${1#*:}" ;;
   ao-cornell) echo "--integrator ao --spp 1 --ao-rays 64 --scene cornell-box" ;;
   mis-cornell) echo "--integrator mis --max-depth 8 --spp 1 --bvh-splits 0 --scene cornell-box" ;;
   nee-many) echo "--integrator nee --max-depth 2 --spp 1 --bvh-splits 0 --scene many-lights" ;;
@@ -37,6 +38,9 @@ bench() { # variant workload
   local v=$1 b env=() extra=()
   b=$(build "$v")
   [[ $v == *@* ]] && extra=("${v#*@}")
+  # KIND:SCENE builds at high, unless the variant's argument chooses (NAME@--bvh-quality=auto)
+  local quality="--bvh-quality high"
+  [[ ${extra[*]:-} == --bvh-quality* ]] && quality=""
   local rest=${v%%@*}
   [[ $rest == *:* ]] && env=("${rest#*:}")
   out=$(env "${env[@]}" "$DIR/runner-$b" bench --backend gpu --width 1920 --height 1080 \
