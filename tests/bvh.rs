@@ -452,7 +452,7 @@ fn cwbvh_children_are_popped_front_to_back() {
 
 /// The AO walk's order (`runner::ao_order`): from inside a closed sphere the far wall
 /// blocks the rays, and back to front finds it with fewer nodes (−11% here, −13% on
-/// shell-1m; shell-20k's SBVH gives only −4%, within the pilot's margin); between grass
+/// shell-1m; shell-20k's SBVH gives only −4.7%, within the pilot's 5% margin); between grass
 /// blades the nearest blade blocks them, and front to back does (+4% back to front here,
 /// +5% on grass-1m). The pilot must see both and choose so, which it cannot if the order
 /// did not reach the walk.
