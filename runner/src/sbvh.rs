@@ -202,19 +202,27 @@ enum Split {
     },
 }
 
-/// The bins of a node's references: chunks in parallel where there are many.
-fn bin_in_chunks<B: Send + Sync + Copy>(
+/// The bins of a node's references: chunks in parallel where there are many. The chunks'
+/// bins (12 KB of object bins) are merged on the heap: rayon's reduce holds each level's
+/// two results on its stack, and a worker that waits in a join runs other nodes' binning
+/// on top of its own, so bins by value overflowed the 2 MiB stacks of the device
+/// machine's 16 workers (grass-1m at `high`; 512 KiB stacks overflow every time).
+fn bin_in_chunks<B: Send>(
     refs: &[Ref],
-    empty: B,
     bin: impl Fn(&[Ref]) -> B + Sync,
-    merge: impl Fn(B, B) -> B + Sync + Send,
+    merge: impl Fn(&mut B, &B) + Sync + Send,
 ) -> B {
     if refs.len() <= PARALLEL_REFS {
         return bin(refs);
     }
-    refs.par_chunks(PARALLEL_REFS)
-        .map(&bin)
-        .reduce(|| empty, &merge)
+    let merged = refs
+        .par_chunks(PARALLEL_REFS)
+        .map(|chunk| Box::new(bin(chunk)))
+        .reduce_with(|mut a, b| {
+            merge(&mut a, &b);
+            a
+        });
+    *merged.expect("more than PARALLEL_REFS references make at least one chunk")
 }
 
 /// The box of the references' centres.
@@ -256,7 +264,6 @@ fn object_bins(refs: &[Ref], centres: CentreBins) -> ObjectBins {
     let empty = [[(Bounds::EMPTY, 0u32); OBJECT_BINS]; 3];
     bin_in_chunks(
         refs,
-        empty,
         |chunk| {
             let mut bins = empty;
             for r in chunk {
@@ -268,13 +275,12 @@ fn object_bins(refs: &[Ref], centres: CentreBins) -> ObjectBins {
             }
             bins
         },
-        |mut a, b| {
-            for (axis_a, axis_b) in a.iter_mut().zip(&b) {
+        |a, b| {
+            for (axis_a, axis_b) in a.iter_mut().zip(b) {
                 for (x, y) in axis_a.iter_mut().zip(axis_b) {
                     *x = (x.0.union(y.0), x.1 + y.1);
                 }
             }
-            a
         },
     )
 }
@@ -284,7 +290,6 @@ fn spatial_bins(ctx: &Context, refs: &[Ref], node: Bounds) -> SpatialBins {
     let planes: [Option<Planes>; 3] = std::array::from_fn(|axis| Planes::new(node, axis));
     bin_in_chunks(
         refs,
-        empty,
         |chunk| {
             let mut bins = empty;
             for (axis, planes) in planes.iter().enumerate() {
@@ -317,13 +322,12 @@ fn spatial_bins(ctx: &Context, refs: &[Ref], node: Bounds) -> SpatialBins {
             }
             bins
         },
-        |mut a, b| {
-            for (axis_a, axis_b) in a.iter_mut().zip(&b) {
+        |a, b| {
+            for (axis_a, axis_b) in a.iter_mut().zip(b) {
                 for (x, y) in axis_a.iter_mut().zip(axis_b) {
                     *x = (x.0.union(y.0), x.1 + y.1, x.2 + y.2);
                 }
             }
-            a
         },
     )
 }
@@ -823,6 +827,35 @@ mod tests {
 
     fn inside(a: &Aabb, p: Vec3) -> bool {
         Vec3::from(a.min).cmple(p).all() && p.cmple(Vec3::from(a.max)).all()
+    }
+
+    /// Nodes of many references bin in parallel chunks (`bin_in_chunks`) without deep
+    /// stacks: with the chunks' bins held by value in rayon's reduce (12 KB a level, and a
+    /// waiting worker running other nodes' binning on top), 16 workers of 512 KiB stacks
+    /// overflowed on grass-1m, and the device machine's 2 MiB ones at times. A stack
+    /// overflow aborts the test binary.
+    #[test]
+    fn builds_on_small_worker_stacks() {
+        let mut rng = Rng::from_seed(5);
+        let mut random = |lo: f32, hi: f32| lo + (hi - lo) * rng.next_f32();
+        let tris: Vec<Triangle> = (0..200_000)
+            .map(|_| {
+                let p = Vec3::new(random(-50.0, 50.0), random(0.0, 5.0), random(-50.0, 50.0));
+                let mut corner =
+                    || p + Vec3::new(random(0.0, 0.3), random(0.0, 0.3), random(0.0, 0.3));
+                Triangle::new(corner(), corner(), corner(), 0)
+            })
+            .collect();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(16)
+            .stack_size(256 << 10)
+            .build()
+            .expect("a thread pool");
+        let bvh = pool.install(|| build_of(&tris, &|_| true));
+        let mut seen: Vec<u32> = bvh.primitive_indices.clone();
+        seen.sort_unstable();
+        seen.dedup();
+        assert_eq!(seen.len(), tris.len(), "every triangle in a leaf");
     }
 
     #[test]
