@@ -8,7 +8,7 @@ use glam::Vec3A;
 use kernels::types::{Bvh2Node, CwBvhNode, Triangle};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
-use obvhs::ploc::{PlocSearchDistance, SortPrecision};
+use obvhs::ploc::{PlocBuilder, PlocSearchDistance, SortPrecision};
 use obvhs::{Boundable, BvhBuildParams};
 
 /// A triangle's box, padded by a few ulps of its coordinates. Boxes that strictly contain
@@ -298,14 +298,16 @@ pub fn build_cwbvh(
         bytemuck::cast_slice::<obvhs::cwbvh::node::CwBvhNode, CwBvhNode>(&bvh.nodes).to_vec()
     };
     let crowded = overlap(&boxes) > MAX_OVERLAP;
-    let balanced_tree =
-        || obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(&balanced_bvh2(&boxes), 3, true, false);
-    // Whether the leaves hold triangle indices (the SBVH's) rather than box indices.
-    let mut of_triangles = false;
-    let mut bvh = if crowded {
+    // A tree and the triangle in each of its primitive slots.
+    let balanced_tree = || {
+        let bvh =
+            obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(&balanced_bvh2(&boxes), 3, true, false);
+        let order = triangle_order(&bvh.primitive_indices, &refs);
+        (bvh, order)
+    };
+    let (bvh, order) = if crowded {
         balanced_tree()
     } else if builds_sbvh(quality, triangles.len()) {
-        of_triangles = true;
         let corners: Vec<(Vec3, Vec3)> = boxes
             .iter()
             .map(|b| (Vec3::from(b.0.min), Vec3::from(b.0.max)))
@@ -314,28 +316,37 @@ pub fn build_cwbvh(
         // Every node considered, as at `high`: `auto` builds the SBVH only up to
         // `AUTO_FULL_TRIANGLES` triangles (whose references may be more).
         ReinsertionOptimizer::default().run(&mut bvh2, 1.0, None);
-        obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(&bvh2, 3, true, false)
+        // The SBVH's leaves hold triangle indices, not box indices.
+        let (bvh, order, _) =
+            crate::leaf_size::convert(&bvh2, triangles, |cw| cw.primitive_indices.clone());
+        (bvh, order)
     } else {
-        obvhs::cwbvh::builder::build_cwbvh(
+        // obvhs's `build_cwbvh`, whose binary BVH the leaf sizes' conversions share.
+        let config = params(quality, boxes.len());
+        let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
+            config.ploc_search_distance,
             &boxes,
-            params(quality, boxes.len()),
-            &mut Duration::default(),
-        )
+            (0..boxes.len() as u32).collect(),
+            config.sort_precision,
+            config.search_depth_threshold,
+        );
+        ReinsertionOptimizer::default().run(&mut bvh2, config.reinsertion_batch_ratio, None);
+        let (bvh, order, _) = crate::leaf_size::convert(&bvh2, triangles, |cw| {
+            triangle_order(&cw.primitive_indices, &refs)
+        });
+        (bvh, order)
     };
     let mut nodes = flatten(&bvh);
+    let mut order = order;
     let balanced = crowded || cwbvh_depth(&nodes) > kernels::bvh::CWBVH_STACK;
     if balanced && !crowded {
-        bvh = balanced_tree();
-        of_triangles = false;
+        let (bvh, balanced_order) = balanced_tree();
         nodes = flatten(&bvh);
+        order = balanced_order;
     }
     Built {
         nodes,
-        order: if of_triangles {
-            bvh.primitive_indices
-        } else {
-            triangle_order(&bvh.primitive_indices, &refs)
-        },
+        order,
         build_time: start.elapsed(),
         balanced,
     }

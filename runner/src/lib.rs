@@ -15,6 +15,7 @@ pub mod gltf_lights;
 pub mod gltf_scene;
 pub mod gpu;
 pub mod integrator;
+pub mod leaf_size;
 pub mod light_shares;
 pub mod lights;
 pub mod logging;
