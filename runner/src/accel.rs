@@ -283,8 +283,9 @@ pub fn build_bvh2(
     }
 }
 
-/// CWBVH: PLOC BVH2 with one triangle per leaf, converted by obvhs to 8-wide compressed
-/// nodes with up to 3 triangles per leaf child and children ordered for traversal.
+/// CWBVH: a binary BVH with one triangle per leaf (PLOC, or the SBVH), converted by obvhs
+/// to 8-wide compressed nodes with children ordered for traversal and leaf children of up
+/// to 3 triangles or of 1, whichever a pilot prices lower (`leaf_size`).
 pub fn build_cwbvh(
     triangles: &[Triangle],
     quality: BvhQuality,
