@@ -306,39 +306,44 @@ pub fn build_cwbvh(
         let order = triangle_order(&bvh.primitive_indices, &refs);
         (bvh, order)
     };
-    let (bvh, order) = if crowded {
+    let (bvh, mut order) = if crowded {
         balanced_tree()
-    } else if builds_sbvh(quality, triangles.len()) {
-        let corners: Vec<(Vec3, Vec3)> = boxes
-            .iter()
-            .map(|b| (Vec3::from(b.0.min), Vec3::from(b.0.max)))
-            .collect();
-        let mut bvh2 = crate::sbvh::build(triangles, &corners, &refs, &pad, splittable);
-        // Every node considered, as at `high`: `auto` builds the SBVH only up to
-        // `AUTO_FULL_TRIANGLES` triangles (whose references may be more).
-        ReinsertionOptimizer::default().run(&mut bvh2, 1.0, None);
-        // The SBVH's leaves hold triangle indices, not box indices.
-        let (bvh, order, _) =
-            crate::leaf_size::convert(&bvh2, triangles, |cw| cw.primitive_indices.clone());
-        (bvh, order)
     } else {
-        // obvhs's `build_cwbvh`, whose binary BVH the leaf sizes' conversions share.
-        let config = params(quality, boxes.len());
-        let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
-            config.ploc_search_distance,
-            &boxes,
-            (0..boxes.len() as u32).collect(),
-            config.sort_precision,
-            config.search_depth_threshold,
-        );
-        ReinsertionOptimizer::default().run(&mut bvh2, config.reinsertion_batch_ratio, None);
+        // The binary tree, and whether its leaves hold triangle indices (the SBVH's)
+        // rather than box indices.
+        let (bvh2, of_triangles) = if builds_sbvh(quality, triangles.len()) {
+            let corners: Vec<(Vec3, Vec3)> = boxes
+                .iter()
+                .map(|b| (Vec3::from(b.0.min), Vec3::from(b.0.max)))
+                .collect();
+            let mut bvh2 = crate::sbvh::build(triangles, &corners, &refs, &pad, splittable);
+            // Every node considered, as at `high`: `auto` builds the SBVH only up to
+            // `AUTO_FULL_TRIANGLES` triangles (whose references may be more).
+            ReinsertionOptimizer::default().run(&mut bvh2, 1.0, None);
+            (bvh2, true)
+        } else {
+            // obvhs's `build_cwbvh` up to its conversion, which `leaf_size` makes twice.
+            let config = params(quality, boxes.len());
+            let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
+                config.ploc_search_distance,
+                &boxes,
+                (0..boxes.len() as u32).collect(),
+                config.sort_precision,
+                config.search_depth_threshold,
+            );
+            ReinsertionOptimizer::default().run(&mut bvh2, config.reinsertion_batch_ratio, None);
+            (bvh2, false)
+        };
         let (bvh, order, _) = crate::leaf_size::convert(&bvh2, triangles, |cw| {
-            triangle_order(&cw.primitive_indices, &refs)
+            if of_triangles {
+                cw.primitive_indices.clone()
+            } else {
+                triangle_order(&cw.primitive_indices, &refs)
+            }
         });
         (bvh, order)
     };
     let mut nodes = flatten(&bvh);
-    let mut order = order;
     let balanced = crowded || cwbvh_depth(&nodes) > kernels::bvh::CWBVH_STACK;
     if balanced && !crowded {
         let (bvh, balanced_order) = balanced_tree();

@@ -12,7 +12,7 @@
 //! own code over the GPU's nodes, keeps the 1-triangle one where it is cheaper by `MARGIN`
 //! at `TRIANGLE_COST` (README, "Leaves of one triangle").
 use kernels::bvh::{cwbvh_ao_walk_nodes, Cutouts, TriangleSlots};
-use kernels::glam::{UVec4, Vec3};
+use kernels::glam::UVec4;
 use kernels::integrators::ao::AoRays;
 use kernels::rng::Rng;
 use kernels::sampling::{uniform_triangle, Strata};
@@ -109,13 +109,7 @@ fn pilot_rays(triangles: &[Triangle]) -> Vec<PilotRay> {
     if !(total > 0.0 && total.is_finite()) {
         return Vec::new();
     }
-    let (lo, hi) = triangles.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), t| {
-            let (a, b, c) = t.vertices();
-            (lo.min(a).min(b).min(c), hi.max(a).max(b).max(c))
-        },
-    );
+    let (lo, hi) = crate::scene::bounds_of(crate::scene::corners(triangles));
     let t_max = PILOT_LENGTH * (hi - lo).length();
     let mut rng = Rng::from_seed(0x1eaf);
     (0..PILOT_RAYS)
@@ -129,8 +123,7 @@ fn pilot_rays(triangles: &[Triangle]) -> Vec<PilotRay> {
             .min(triangles.len() - 1);
             let tri = &triangles[i];
             let (b1, b2) = uniform_triangle(rng.next_f32(), rng.next_f32());
-            let (p0, p1, p2) = tri.vertices();
-            let p = p0 * (1.0 - b1 - b2) + p1 * b1 + p2 * b2;
+            let p = tri.point(b1, b2);
             let n = tri.normal();
             if !n.is_finite() {
                 return None;
