@@ -283,9 +283,9 @@ pub fn build_bvh2(
     }
 }
 
-/// CWBVH: a binary BVH with one triangle per leaf (PLOC, or the SBVH), converted by obvhs
-/// to 8-wide compressed nodes with children ordered for traversal and leaf children of up
-/// to 3 triangles or of 1, whichever a pilot prices lower (`leaf_size`).
+/// CWBVH: a binary BVH with one triangle per leaf (PLOC, or the SBVH), collapsed into
+/// 8-wide compressed nodes with children ordered for traversal, leaf children of 1 to 3
+/// triangles where the GPU's costs favour them (`collapse`).
 pub fn build_cwbvh(
     triangles: &[Triangle],
     quality: BvhQuality,
@@ -301,8 +301,7 @@ pub fn build_cwbvh(
     let crowded = overlap(&boxes) > MAX_OVERLAP;
     // A tree and the triangle in each of its primitive slots.
     let balanced_tree = || {
-        let bvh =
-            obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(&balanced_bvh2(&boxes), 3, true, false);
+        let bvh = crate::collapse::convert(&balanced_bvh2(&boxes));
         let order = triangle_order(&bvh.primitive_indices, &refs);
         (bvh, order)
     };
@@ -322,7 +321,7 @@ pub fn build_cwbvh(
             ReinsertionOptimizer::default().run(&mut bvh2, 1.0, None);
             (bvh2, true)
         } else {
-            // obvhs's `build_cwbvh` up to its conversion, which `leaf_size` makes twice.
+            // obvhs's `build_cwbvh` up to its conversion, which `collapse` makes.
             let config = params(quality, boxes.len());
             let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
                 config.ploc_search_distance,
@@ -334,13 +333,12 @@ pub fn build_cwbvh(
             ReinsertionOptimizer::default().run(&mut bvh2, config.reinsertion_batch_ratio, None);
             (bvh2, false)
         };
-        let (bvh, order, _) = crate::leaf_size::convert(&bvh2, triangles, |cw| {
-            if of_triangles {
-                cw.primitive_indices.clone()
-            } else {
-                triangle_order(&cw.primitive_indices, &refs)
-            }
-        });
+        let bvh = crate::collapse::convert(&bvh2);
+        let order = if of_triangles {
+            bvh.primitive_indices.clone()
+        } else {
+            triangle_order(&bvh.primitive_indices, &refs)
+        };
         (bvh, order)
     };
     let mut nodes = flatten(&bvh);

@@ -161,9 +161,8 @@ fn pilot_point<const PLAIN: bool>(
     for k in (0..params.ao_rays).step_by(every as usize) {
         let ao = point.ray(k, strata);
         let end = (s.prim, params.ao_distance);
-        let walk = |order| {
-            cwbvh_ao_walk_nodes::<PLAIN, CwBvhNode, _>(triangles, cut, nodes, &ao, end, order).0
-        };
+        let walk =
+            |order| cwbvh_ao_walk_nodes::<PLAIN, CwBvhNode>(triangles, cut, nodes, &ao, end, order);
         counts.rays += 1;
         counts.near += walk(AO_NEAR_FIRST) as u64;
         counts.far += walk(AO_FAR_FIRST) as u64;

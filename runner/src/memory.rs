@@ -6,10 +6,9 @@ use crate::error::Result;
 
 /// Peak bytes per triangle of building and rendering a scene (triangles, their leaf-ordered
 /// copy, obvhs's build, BVH nodes, light table): rocks-1m (998,404 triangles) peaked at
-/// 315 MB on the CPU backend; 368 MB with the CWBVH's two leaf sizes converted one after
-/// the other (`leaf_size`, which converts them side by side only where memory is ample).
-/// Measured with PLOC's build; `check_scene` scales it for the SBVH's.
-pub const BYTES_PER_SCENE_TRIANGLE: u64 = 380;
+/// 347 MB on the CPU backend (`bench --backend cpu --bvh-quality fast`, the maximum
+/// resident size). Measured with PLOC's build; `check_scene` scales it for the SBVH's.
+pub const BYTES_PER_SCENE_TRIANGLE: u64 = 360;
 /// Peak bytes per byte of an OBJ file while it is read and built (text, tobj's arrays, the
 /// scene): a 122 MB OBJ of rocks-1m peaked at 623 MB.
 pub const BYTES_PER_OBJ_BYTE: f64 = 5.2;

@@ -249,7 +249,7 @@ impl<'a> SceneBuffers<'a> {
             let wanted = START_TOGETHER.min(crate::subgroup::count(true));
             loop {
                 if !done {
-                    done = walk.step::<PLAIN, true, TraversalNode, _>(
+                    done = walk.step::<PLAIN, true, TraversalNode>(
                         self.triangles,
                         &cut,
                         self.nodes,
@@ -466,24 +466,10 @@ macro_rules! count {
 #[cfg(not(target_arch = "spirv"))]
 pub(crate) use count;
 
-/// Where a walk reads the triangle in each slot of its tree: the triangle buffer, in leaf
-/// order (every kernel); or, for the host's pilots that compare trees, each tree's slots
-/// read through its own order from the scene's triangles, without a copy per tree.
-pub trait TriangleSlots {
-    fn triangle(&self, slot: u32) -> Triangle;
-}
-
-impl TriangleSlots for [UVec4] {
-    #[inline(always)]
-    fn triangle(&self, slot: u32) -> Triangle {
-        Triangle::read(self, slot)
-    }
-}
-
 /// Test triangles `first .. first + count` against the ray, shrinking `hit.t`.
 /// Returns true when `any` is set and something was hit (the caller stops).
-fn test_leaf<const PLAIN: bool, T: TriangleSlots + ?Sized>(
-    triangles: &T,
+fn test_leaf<const PLAIN: bool>(
+    triangles: &[UVec4],
     cutouts: &Cutouts,
     tester: &TriangleTester,
     first: u32,
@@ -494,7 +480,7 @@ fn test_leaf<const PLAIN: bool, T: TriangleSlots + ?Sized>(
     let mut i = first;
     while i < first + count {
         count!(TRIANGLES);
-        let tri = triangles.triangle(i);
+        let tri = Triangle::read(triangles, i);
         // Written out rather than through `Cutouts::solid_hit`: that call changes the
         // SPIR-V of every traversal, which no device was lent to measure.
         if let Some((t, b1, b2)) = tester.intersect(&tri, 0.0, hit.t) {
@@ -537,7 +523,7 @@ pub fn bvh2_traverse<const PLAIN: bool>(
         let node = Bvh2Node::read(nodes, current);
         let mut next_valid = false;
         if node.count > 0 {
-            if test_leaf::<PLAIN, _>(
+            if test_leaf::<PLAIN>(
                 triangles, cutouts, &tester, node.first, node.count, &mut hit, any,
             ) {
                 return hit;
@@ -886,33 +872,32 @@ pub fn cwbvh_traverse<const PLAIN: bool, N: WideNode>(
     }
     // Front to back: a closest hit found early shortens the ray for the rest of the walk.
     let mut walk = CwbvhWalk::new(ray, t_max, INVALID, AO_NEAR_FIRST);
-    while !walk.step::<PLAIN, false, N, _>(triangles, cutouts, nodes, any) {}
+    while !walk.step::<PLAIN, false, N>(triangles, cutouts, nodes, any) {}
     walk.hit
 }
 
 /// Nodes that the pooled AO walk (`SceneBuffers::trace_pool`) visits for `ray`, leaving
-/// triangle `leaves`, to `t_max` with children in `order`, and the triangles it tests:
-/// what the GPU's time follows (README, "Benchmark suite"); the host's pilots
-/// (`runner::ao_order`, `runner::leaf_size`) count them over the GPU's own nodes.
-#[cfg(not(target_arch = "spirv"))]
-pub fn cwbvh_ao_walk_nodes<const PLAIN: bool, N: WideNode, T: TriangleSlots + ?Sized>(
-    triangles: &T,
+/// triangle `leaves`, to `t_max` with children in `order`: what the GPU's time follows
+/// (README, "Benchmark suite"); the host's pilot (`runner::ao_order`) counts it over
+/// the GPU's own nodes.
+pub fn cwbvh_ao_walk_nodes<const PLAIN: bool, N: WideNode>(
+    triangles: &[UVec4],
     cutouts: &Cutouts,
     nodes: &[UVec4],
     ray: &Ray,
     (leaves, t_max): (u32, f32),
     order: u32,
-) -> (u32, u32) {
+) -> u32 {
     if nodes.is_empty() {
-        return (0, 0);
+        return 0;
     }
     let mut walk = CwbvhWalk::new(ray, t_max, leaves, order);
     let mut visited = 0;
     loop {
         // A step visits a node while its group has interior children left (`step`).
         visited += (walk.group_bits & INTERIOR_HITS != 0) as u32;
-        if walk.step::<PLAIN, true, N, T>(triangles, cutouts, nodes, true) {
-            return (visited, walk.tested);
+        if walk.step::<PLAIN, true, N>(triangles, cutouts, nodes, true) {
+            return visited;
         }
     }
 }
@@ -937,9 +922,6 @@ struct CwbvhWalk {
     /// The node group being visited: child base index and hit bits.
     group_base: u32,
     group_bits: u32,
-    /// Triangles tested so far (the host's pilots count them; not kept on the GPU).
-    #[cfg(not(target_arch = "spirv"))]
-    tested: u32,
 }
 
 impl CwbvhWalk {
@@ -955,8 +937,6 @@ impl CwbvhWalk {
             sp: 0,
             group_base: 0,
             group_bits: 0,
-            #[cfg(not(target_arch = "spirv"))]
-            tested: 0,
         };
         walk.restart(ray, t_max, leaves, order);
         walk
@@ -987,9 +967,9 @@ impl CwbvhWalk {
     /// every triangle, with no compare for it in the loop (the compare against `INVALID`
     /// made Cornell MIS 0.8% slower on the H200).
     #[inline(always)]
-    fn step<const PLAIN: bool, const SKIPS: bool, N: WideNode, T: TriangleSlots + ?Sized>(
+    fn step<const PLAIN: bool, const SKIPS: bool, N: WideNode>(
         &mut self,
-        triangles: &T,
+        triangles: &[UVec4],
         cutouts: &Cutouts,
         nodes: &[UVec4],
         any: bool,
@@ -1021,13 +1001,8 @@ impl CwbvhWalk {
             let k = first_bit_high(tri_bits);
             tri_bits &= !(1u32 << k);
             let tester = &self.tester;
-            let skipped = SKIPS && tri_base + k == self.leaves;
-            #[cfg(not(target_arch = "spirv"))]
-            {
-                self.tested += !skipped as u32;
-            }
-            if !skipped
-                && test_leaf::<PLAIN, _>(
+            if (!SKIPS || tri_base + k != self.leaves)
+                && test_leaf::<PLAIN>(
                     triangles,
                     cutouts,
                     tester,
