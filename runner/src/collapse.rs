@@ -161,10 +161,15 @@ mod tests {
     /// Our programme is obvhs's: at its triangle cost it makes its tree, to the byte.
     #[test]
     fn at_obvhs_triangle_cost_it_is_obvhs_conversion() {
-        let cornell = crate::scene::cornell_box().expect("built-in scene").triangles;
+        let cornell = crate::scene::cornell_box()
+            .expect("built-in scene")
+            .triangles;
         for triangles in [cornell, crate::generate::rocks(20_000).triangles] {
             let bvh2 = ploc(&triangles);
-            assert!(same_tree(&convert_at(&bvh2, 0.3), &bvh2_to_cwbvh(&bvh2, 3, true, false)));
+            assert!(same_tree(
+                &convert_at(&bvh2, 0.3),
+                &bvh2_to_cwbvh(&bvh2, 3, true, false)
+            ));
         }
     }
 
@@ -175,13 +180,26 @@ mod tests {
     /// or 3: rocks-20k 6462 / 3599 / 568 leaves of 1 / 2 / 3, ours 15336 / 14 / 0).
     #[test]
     fn at_the_gpus_triangle_cost_leaves_follow_what_the_gpu_measured() {
-        let cornell = ploc(&crate::scene::cornell_box().expect("built-in scene").triangles);
-        assert!(same_tree(&convert(&cornell), &bvh2_to_cwbvh(&cornell, 3, true, false)));
+        let cornell = ploc(
+            &crate::scene::cornell_box()
+                .expect("built-in scene")
+                .triangles,
+        );
+        assert!(same_tree(
+            &convert(&cornell),
+            &bvh2_to_cwbvh(&cornell, 3, true, false)
+        ));
         let rocks = ploc(&crate::generate::rocks(20_000).triangles);
         let [ones, twos, threes] = leaf_sizes(&convert(&rocks));
-        assert!(ones > 20 * (twos + threes), "leaves of 1, 2, 3: {ones} {twos} {threes}");
+        assert!(
+            ones > 20 * (twos + threes),
+            "leaves of 1, 2, 3: {ones} {twos} {threes}"
+        );
         let [ones, twos, threes] = leaf_sizes(&bvh2_to_cwbvh(&rocks, 3, true, false));
-        assert!(2 * twos + 3 * threes > ones, "obvhs's leaves of 1, 2, 3: {ones} {twos} {threes}");
+        assert!(
+            2 * twos + 3 * threes > ones,
+            "obvhs's leaves of 1, 2, 3: {ones} {twos} {threes}"
+        );
     }
 
     #[test]
