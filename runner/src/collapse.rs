@@ -12,22 +12,44 @@
 //! keeps leaves of up to 3 where they pay (the Cornell box gets obvhs's tree) and single
 //! triangles where they do not, and fills nodes better than leaves of one everywhere
 //! would (README, "The wide nodes at the GPU's costs"). obvhs's encoder (child order,
-//! quantised boxes, meta bytes) builds the nodes from these decisions.
+//! quantised boxes, meta bytes) builds the nodes from these decisions. The CPU backend
+//! has prices of its own (`CPU_TRIANGLE_COST`).
 use obvhs::bvh2::Bvh2;
 use obvhs::cwbvh::bvh2_to_cwbvh::{Bvh2Converter, Decision, DecisionKind};
 use obvhs::cwbvh::CwBvh;
+use std::sync::atomic::{AtomicU32, Ordering};
 
-/// A triangle test's cost in node visits (H100, AO; module comment).
-const TRIANGLE_COST: f32 = 2.2;
+/// A triangle test's cost in node visits on the GPU (H100, AO; module comment).
+pub const GPU_TRIANGLE_COST: f32 = 2.2;
+/// ... on the CPU backend, whose bundles test a triangle against up to 64 rays at once:
+/// obvhs's 0.3 (leaves of up to 3 almost everywhere) made its AO 4–10% faster than 2.2
+/// on rocks-1m, shell-1m and spheres-1m (README, "The CPU backend against Embree").
+pub const CPU_TRIANGLE_COST: f32 = 0.3;
+
+/// The price the trees this process builds use (`set_for_cpu`), as f32 bits: like the
+/// BVH quality, a setting of the process, chosen before a scene loads.
+static TRIANGLE_COST: AtomicU32 = AtomicU32::new(GPU_TRIANGLE_COST.to_bits());
+
+/// Price the trees built from now on for the CPU backend (`--backend cpu`) or the GPU's
+/// (everything else: `--backend auto` chooses after the scene has loaded, and mostly a GPU).
+pub fn set_for_cpu(cpu: bool) {
+    let cost = if cpu {
+        CPU_TRIANGLE_COST
+    } else {
+        GPU_TRIANGLE_COST
+    };
+    TRIANGLE_COST.store(cost.to_bits(), Ordering::Relaxed);
+}
 /// The most triangles a CWBVH leaf holds (its meta byte's three bits).
 const MAX_LEAF: u32 = 3;
 /// Slot counts a binary subtree may be given in obvhs's decision table: 1 to 7 (a wide
 /// node's 8 slots go to its two halves).
 const SLOTS: usize = 7;
 
-/// The CWBVH of `bvh2` (one triangle or triangle reference per leaf).
+/// The CWBVH of `bvh2` (one triangle or triangle reference per leaf), priced for the
+/// backend chosen with `set_for_cpu`.
 pub fn convert(bvh2: &Bvh2) -> CwBvh {
-    convert_at(bvh2, TRIANGLE_COST)
+    convert_at(bvh2, f32::from_bits(TRIANGLE_COST.load(Ordering::Relaxed)))
 }
 
 /// [`convert`] with a triangle test priced at `triangle_cost` node visits.
@@ -186,11 +208,11 @@ mod tests {
                 .triangles,
         );
         assert!(same_tree(
-            &convert(&cornell),
+            &convert_at(&cornell, GPU_TRIANGLE_COST),
             &bvh2_to_cwbvh(&cornell, 3, true, false)
         ));
         let rocks = ploc(&crate::generate::rocks(20_000).triangles);
-        let [ones, twos, threes] = leaf_sizes(&convert(&rocks));
+        let [ones, twos, threes] = leaf_sizes(&convert_at(&rocks, GPU_TRIANGLE_COST));
         assert!(
             ones > 20 * (twos + threes),
             "leaves of 1, 2, 3: {ones} {twos} {threes}"

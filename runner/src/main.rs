@@ -40,6 +40,16 @@ fn main() -> ExitCode {
         eprintln!("error: {e}");
         return ExitCode::FAILURE;
     }
+    // The CWBVH's leaves priced for where the kernels will run (`collapse`).
+    let device = match &cli.command {
+        Command::Render(args) => Some(&args.device),
+        Command::Bench(args) => Some(&args.device),
+        Command::View(args) => Some(&args.device),
+        _ => None,
+    };
+    runner::collapse::set_for_cpu(
+        device.is_some_and(|d| d.backend == runner::backend::BackendChoice::Cpu),
+    );
     let result = match cli.command {
         Command::Render(args) => runner::render::run(&args),
         Command::Bench(args) if args.suite => {
