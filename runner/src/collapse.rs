@@ -40,6 +40,7 @@ pub fn set_for_cpu(cpu: bool) {
     };
     TRIANGLE_COST.store(cost.to_bits(), Ordering::Relaxed);
 }
+
 /// The most triangles a CWBVH leaf holds (its meta byte's three bits).
 const MAX_LEAF: u32 = 3;
 /// Slot counts a binary subtree may be given in obvhs's decision table: 1 to 7 (a wide
