@@ -299,17 +299,21 @@ pub fn build_cwbvh(
         bytemuck::cast_slice::<obvhs::cwbvh::node::CwBvhNode, CwBvhNode>(&bvh.nodes).to_vec()
     };
     let crowded = overlap(&boxes) > MAX_OVERLAP;
-    // A tree and the triangle in each of its primitive slots.
-    let balanced_tree = || {
-        let bvh = crate::collapse::convert(&balanced_bvh2(&boxes));
-        let order = triangle_order(&bvh.primitive_indices, &refs);
+    // A binary tree collapsed into wide nodes, and the triangle in each of their primitive
+    // slots: the binary leaves hold triangle indices (the SBVH's) or box indices.
+    let collapse = |bvh2: &obvhs::bvh2::Bvh2, of_triangles: bool| {
+        let bvh = crate::collapse::convert(bvh2);
+        let order = if of_triangles {
+            bvh.primitive_indices.clone()
+        } else {
+            triangle_order(&bvh.primitive_indices, &refs)
+        };
         (bvh, order)
     };
+    let balanced_tree = || collapse(&balanced_bvh2(&boxes), false);
     let (bvh, mut order) = if crowded {
         balanced_tree()
     } else {
-        // The binary tree, and whether its leaves hold triangle indices (the SBVH's)
-        // rather than box indices.
         let (bvh2, of_triangles) = if builds_sbvh(quality, triangles.len()) {
             let corners: Vec<(Vec3, Vec3)> = boxes
                 .iter()
@@ -333,13 +337,7 @@ pub fn build_cwbvh(
             ReinsertionOptimizer::default().run(&mut bvh2, config.reinsertion_batch_ratio, None);
             (bvh2, false)
         };
-        let bvh = crate::collapse::convert(&bvh2);
-        let order = if of_triangles {
-            bvh.primitive_indices.clone()
-        } else {
-            triangle_order(&bvh.primitive_indices, &refs)
-        };
-        (bvh, order)
+        collapse(&bvh2, of_triangles)
     };
     let mut nodes = flatten(&bvh);
     let balanced = crowded || cwbvh_depth(&nodes) > kernels::bvh::CWBVH_STACK;

@@ -6,8 +6,10 @@ use crate::error::Result;
 
 /// Peak bytes per triangle of building and rendering a scene (triangles, their leaf-ordered
 /// copy, obvhs's build, BVH nodes, light table): rocks-1m (998,404 triangles) peaked at
-/// 347 MB on the CPU backend (`bench --backend cpu --bvh-quality fast`, the maximum
-/// resident size). Measured with PLOC's build; `check_scene` scales it for the SBVH's.
+/// 347 MB with the GPU's tree on the CPU backend (`bench --backend cpu --bvh-quality fast`,
+/// the maximum resident size, before `--backend cpu` got a tree of its own: 340 MB, as
+/// its leaves of up to 3 make fewer nodes). Measured with PLOC's build; `check_scene`
+/// scales it for the SBVH's.
 pub const BYTES_PER_SCENE_TRIANGLE: u64 = 360;
 /// Peak bytes per byte of an OBJ file while it is read and built (text, tobj's arrays, the
 /// scene): a 122 MB OBJ of rocks-1m peaked at 623 MB.
