@@ -324,23 +324,44 @@ fn ao_workgroup_pool_matches_per_pixel() {
     // many threads on the CPU, in rows of 8 pixels, over a tile that sticks out of the image (threads without a pixel) and
     // over one inside it, and hold every pixel to the per-pixel function's result: the
     // same rays are traced whoever traces them, so the sums must be identical.
-    use kernels::integrators::ao::{render_group_pixel, render_pixel, GROUP_THREADS, GROUP_WORDS};
-    let (w, h) = (13, 11);
-    let sa = scene_args(w, h);
-    let mut ka = kernel_args(Integrator::Ao, 3);
-    ka.ao_rays = 5;
-    let mut scene = load_scene(&sa).unwrap();
-    let mut params = frame_params(&sa, &ka, &mut scene).unwrap();
-    params.samples = 3;
-    let buffers = scene.kernel();
-    let mut hits = 0;
     // Either walk order (`runner::ao_order`): the same answer for every ray.
     let orders = [kernels::types::AO_NEAR_FIRST, kernels::types::AO_FAR_FIRST];
-    for (tx, ty, order) in [
-        (0u32, 0u32, orders[0]),
-        (8, 8, orders[0]),
-        (0, 0, orders[1]),
-    ] {
+    let hits = pool_matches_per_pixel(
+        None,
+        (13, 11),
+        (3, 5),
+        &[(0, 0, orders[0]), (8, 8, orders[0]), (0, 0, orders[1])],
+    );
+    assert!(
+        hits > 10,
+        "only {hits} pixels with AO rays: the test tests little"
+    );
+    // A full pool: every thread's camera ray hits (from inside a closed sphere), each point
+    // with the renderer's default 64 rays, 8,192 rays for the workgroup.
+    let hits = pool_matches_per_pixel(Some("shell-20k"), (16, 16), (1, 64), &[(0, 0, orders[1])]);
+    assert_eq!(hits, 128, "every thread of the tile should hold a point");
+}
+
+/// `ao_workgroup_pool_matches_per_pixel` on `scene` (None: the Cornell box) of `(w, h)`
+/// pixels, `(spp, ao_rays)`, over the 16 × 8-thread tiles `(x, y, walk order)`: the pixels
+/// with AO rays.
+fn pool_matches_per_pixel(
+    scene: Option<&str>,
+    (w, h): (u32, u32),
+    (spp, ao_rays): (u32, u32),
+    tiles: &[(u32, u32, u32)],
+) -> u32 {
+    use kernels::integrators::ao::{render_group_pixel, render_pixel, GROUP_THREADS, GROUP_WORDS};
+    let mut sa = scene_args(w, h);
+    sa.scene = scene.map(Into::into);
+    let mut ka = kernel_args(Integrator::Ao, spp);
+    ka.ao_rays = ao_rays;
+    let mut scene = load_scene(&sa).unwrap();
+    let mut params = frame_params(&sa, &ka, &mut scene).unwrap();
+    params.samples = spp;
+    let buffers = scene.kernel();
+    let mut hits = 0;
+    for &(tx, ty, order) in tiles {
         params.ao_order = order;
         let words: Vec<_> = (0..GROUP_WORDS).map(|_| Default::default()).collect();
         let barrier = std::sync::Barrier::new(GROUP_THREADS);
@@ -377,8 +398,5 @@ fn ao_workgroup_pool_matches_per_pixel() {
             hits += (want.rays > params.samples) as u32;
         }
     }
-    assert!(
-        hits > 10,
-        "only {hits} pixels with AO rays: the test tests little"
-    );
+    hits
 }
