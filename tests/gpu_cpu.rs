@@ -343,8 +343,8 @@ fn ao_workgroup_pool_matches_per_pixel() {
 }
 
 /// `ao_workgroup_pool_matches_per_pixel` on `scene` (None: the Cornell box) of `(w, h)`
-/// pixels, `(spp, ao_rays)`, over the 16 × 8-thread tiles `(x, y, walk order)`: the pixels
-/// with AO rays.
+/// pixels, `(spp, ao_rays)`, over the tiles of 128 threads, 8 pixels wide and 16 high, at
+/// `(x, y, walk order)`: the pixels with AO rays.
 fn pool_matches_per_pixel(
     scene: Option<&str>,
     (w, h): (u32, u32),
