@@ -411,3 +411,57 @@ fn auto_backend_takes_a_hardware_gpu_or_the_cpu_and_says_why() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains(", backend gpu ("), "{}", stderr(&o));
 }
+
+/// The CWBVH is priced for where the kernels run (`collapse::set_for_cpu`): the CPU
+/// backend's tree differs from the GPU's, and `--backend auto` builds the tree of the
+/// backend it takes — the CPU's on a machine without a hardware GPU, which it knows
+/// before the scene loads.
+#[test]
+fn the_tree_is_priced_for_the_backend_that_runs_it() {
+    let bench = |backend: &str| {
+        let o = runner(&[
+            "bench",
+            "--scene",
+            "spheres-50k",
+            "--integrator",
+            "ao",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--spp",
+            "1",
+            "--ao-rays",
+            "1",
+            "--runs",
+            "1",
+            "--warmup",
+            "0",
+            "--json",
+            "--backend",
+            backend,
+        ]);
+        let json = String::from_utf8_lossy(&o.stdout).into_owned();
+        let nodes = json
+            .split_once("\"bvh_nodes\":")
+            .map(|(_, rest)| rest[..rest.find(',').unwrap()].parse::<usize>().unwrap());
+        let ran = json
+            .split_once("\"backend\":\"")
+            .map(|(_, rest)| rest[..3].to_string());
+        (nodes, ran, stderr(&o))
+    };
+    let (cpu, _, err) = bench("cpu");
+    let cpu = cpu.expect(&err);
+    let (auto, ran, err) = bench("auto");
+    let auto = auto.expect(&err);
+    if ran.as_deref() == Some("cpu") {
+        assert_eq!(auto, cpu, "auto ran on the CPU with another tree: {err}");
+    }
+    // Where a Vulkan adapter exists (CI: lavapipe), the GPU's tree is another one.
+    if let (Some(gpu), _, _) = bench("gpu") {
+        assert_ne!(gpu, cpu, "the GPU's tree is priced as the CPU's");
+        if ran.as_deref() == Some("gpu") {
+            assert_eq!(auto, gpu, "auto ran on the GPU with another tree: {err}");
+        }
+    }
+}

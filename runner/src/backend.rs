@@ -89,6 +89,19 @@ pub fn open(
     Ok(Box::new(GpuBackend::new(ctx, scene, width, height)?))
 }
 
+/// Whether the kernels will run on the CPU backend, as far as that is known before a scene
+/// loads, so that its tree can be priced for the CPU (`collapse::set_for_cpu`): `cpu`, or
+/// `auto` on a machine without a hardware GPU, where `choose_auto` takes the CPU whatever
+/// the scene. (A scene too large for the GPU is the one case that runs on the CPU backend
+/// with the GPU's tree: that is decided only once it has loaded.)
+pub fn expects_cpu(choice: BackendChoice) -> bool {
+    match choice {
+        BackendChoice::Cpu => true,
+        BackendChoice::Gpu => false,
+        BackendChoice::Auto => !adapters().iter().any(|a| !is_software(a)),
+    }
+}
+
 /// A Vulkan adapter as `--backend auto` weighs it.
 #[derive(Clone, Debug)]
 pub struct AdapterFit {

@@ -28,6 +28,8 @@ pub struct BenchReport {
     /// Triangle slots in the BVH's leaves: more than `triangles` where large ones were
     /// pre-split (`--bvh-splits`).
     pub bvh_slots: usize,
+    /// Nodes of the BVH (how the tree was priced shows here: `collapse`).
+    pub bvh_nodes: usize,
     pub bvh_build_ms: f64,
     /// `--bvh-quality` of the build.
     pub bvh_quality: String,
@@ -97,8 +99,8 @@ impl BenchReport {
         let _ = writeln!(s, "triangles      {}", self.triangles);
         let _ = writeln!(
             s,
-            "BVH            {} (build {:.1} ms, quality {}, {} triangle slots)",
-            self.traversal, self.bvh_build_ms, self.bvh_quality, self.bvh_slots
+            "BVH            {} (build {:.1} ms, quality {}, {} triangle slots, {} nodes)",
+            self.traversal, self.bvh_build_ms, self.bvh_quality, self.bvh_slots, self.bvh_nodes
         );
         let _ = writeln!(
             s,
@@ -140,13 +142,14 @@ impl BenchReport {
 
     pub fn json(&self) -> String {
         format!(
-            "{{\"scene\":{:?},\"triangles\":{},\"bvh_slots\":{},\"traversal\":{:?},\"bvh_build_ms\":{:.3},\"bvh_quality\":{:?},\"load_ms\":{:.3},\"backend\":{:?},\
+            "{{\"scene\":{:?},\"triangles\":{},\"bvh_slots\":{},\"bvh_nodes\":{},\"traversal\":{:?},\"bvh_build_ms\":{:.3},\"bvh_quality\":{:?},\"load_ms\":{:.3},\"backend\":{:?},\
              \"integrator\":{:?},\"width\":{},\"height\":{},\"spp\":{},\"rays_per_frame\":{},\
              \"frame_ms_min\":{:.4},\"frame_ms_median\":{:.4},\"pass_ms_min\":{:.4},\"pass_ms_median\":{:.4},\
              \"rays_per_second\":{:.1},\"breakdown_ms\":{{{}}}}}",
             self.scene,
             self.triangles,
             self.bvh_slots,
+            self.bvh_nodes,
             self.traversal,
             self.bvh_build_ms,
             self.bvh_quality,
@@ -274,6 +277,7 @@ fn bench_scene(args: &BenchArgs, loaded: &Scene) -> Result<BenchReport> {
             .unwrap_or_else(|| "cornell-box".into()),
         triangles: scene.triangle_count,
         bvh_slots: scene.triangles.len(),
+        bvh_nodes: scene.nodes.len(),
         bvh_build_ms: scene.bvh_build_time.as_secs_f64() * 1e3,
         bvh_quality: format!("{:?}", args.scene.bvh_quality.unwrap_or_default()).to_lowercase(),
         load_ms: scene.load_time.as_secs_f64() * 1e3,

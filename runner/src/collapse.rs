@@ -30,8 +30,9 @@ pub const CPU_TRIANGLE_COST: f32 = 0.3;
 /// BVH quality, a setting of the process, chosen before a scene loads.
 static TRIANGLE_COST: AtomicU32 = AtomicU32::new(GPU_TRIANGLE_COST.to_bits());
 
-/// Price the trees built from now on for the CPU backend (`--backend cpu`) or the GPU's
-/// (everything else: `--backend auto` chooses after the scene has loaded, and mostly a GPU).
+/// Price the trees built from now on for the CPU backend or the GPU's: for the CPU where
+/// the kernels will run there (`backend::expects_cpu`: `--backend cpu`, or `auto` without
+/// a hardware GPU), the GPU's otherwise.
 pub fn set_for_cpu(cpu: bool) {
     let cost = if cpu {
         CPU_TRIANGLE_COST

@@ -47,9 +47,7 @@ fn main() -> ExitCode {
         Command::View(args) => Some(&args.device),
         _ => None,
     };
-    runner::collapse::set_for_cpu(
-        device.is_some_and(|d| d.backend == runner::backend::BackendChoice::Cpu),
-    );
+    runner::collapse::set_for_cpu(device.is_some_and(|d| runner::backend::expects_cpu(d.backend)));
     let result = match cli.command {
         Command::Render(args) => runner::render::run(&args),
         Command::Bench(args) if args.suite => {
