@@ -419,28 +419,11 @@ fn auto_backend_takes_a_hardware_gpu_or_the_cpu_and_says_why() {
 #[test]
 fn the_tree_is_priced_for_the_backend_that_runs_it() {
     let bench = |backend: &str| {
-        let o = runner(&[
-            "bench",
-            "--scene",
-            "spheres-50k",
-            "--integrator",
-            "ao",
-            "--width",
-            "8",
-            "--height",
-            "8",
-            "--spp",
-            "1",
-            "--ao-rays",
-            "1",
-            "--runs",
-            "1",
-            "--warmup",
-            "0",
-            "--json",
-            "--backend",
-            backend,
-        ]);
+        let args = "bench --scene spheres-50k --integrator ao --width 8 --height 8 --spp 1 \
+                    --ao-rays 1 --runs 1 --warmup 0 --json --backend";
+        let mut args: Vec<&str> = args.split_whitespace().collect();
+        args.push(backend);
+        let o = runner(&args);
         let json = String::from_utf8_lossy(&o.stdout).into_owned();
         let nodes = json
             .split_once("\"bvh_nodes\":")
