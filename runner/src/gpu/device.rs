@@ -29,9 +29,14 @@ pub const REQUIRED_FEATURES: wgpu::Features =
     wgpu::Features::PASSTHROUGH_SHADERS.union(wgpu::Features::SUBGROUP);
 
 /// The Vulkan adapters that can run our kernels ([`REQUIRED_FEATURES`]), best first:
-/// hardware GPUs, then software rasterisers such as lavapipe.
+/// hardware GPUs, then software rasterisers such as lavapipe. Listed once per process:
+/// `--backend auto` asks before the scene loads (`backend::expects_cpu`) and again when
+/// it opens the backend.
 pub fn adapters() -> Vec<wgpu::Adapter> {
-    adapters_of(&instance(None))
+    static ADAPTERS: std::sync::OnceLock<Vec<wgpu::Adapter>> = std::sync::OnceLock::new();
+    ADAPTERS
+        .get_or_init(|| adapters_of(&instance(None)))
+        .clone()
 }
 
 pub fn adapters_of(instance: &wgpu::Instance) -> Vec<wgpu::Adapter> {
