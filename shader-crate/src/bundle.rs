@@ -118,6 +118,7 @@ fn walk<const PLAIN: bool, const AVX: bool>(
         nodes,
         lanes: &lanes,
         testers: &testers,
+        inv_dir: &inv_dir,
         origin,
         leaves,
         t_max,
@@ -251,6 +252,8 @@ struct Bundle<'a, const AVX: bool> {
     nodes: &'a [UVec4],
     lanes: &'a RayLanes<AVX>,
     testers: &'a [TriangleTester; BUNDLE_RAYS],
+    /// Each ray's reciprocal direction (the slab tests without `RayLanes`).
+    inv_dir: &'a [Vec3; BUNDLE_RAYS],
     origin: Vec3,
     /// The triangle the rays leave from, never tested.
     leaves: u32,
@@ -309,8 +312,7 @@ impl<const AVX: bool> Bundle<'_, AVX> {
                 Some(ray_slots) => ray_slots[k] as u32,
                 None => {
                     count!(NODES);
-                    let inv_dir = safe_recip(dir);
-                    node.slot_hits(self.origin, inv_dir, self.t_max) & filled
+                    node.slot_hits(self.origin, self.inv_dir[k], self.t_max) & filled
                 }
             };
             let mut leaf_slots = slots & !node.imask;
