@@ -63,6 +63,16 @@ pub const CWBVH_STACK: usize = 24;
 /// 8 and 12 measured (README, "Benchmark suite"). On the CPU a thread is its own warp.
 pub const START_TOGETHER: u32 = 12;
 
+/// The pooled AO walk tests one triangle a step, alongside that step's node (`CwbvhWalk::
+/// step`'s `ONE`): a lane's triangles wait while it goes on with nodes, instead of the warp
+/// testing one lane's several triangles while the others idle. Nsight Compute on a CUDA
+/// port of this walk (shell-1m, H100) found the triangle loop running with 2.6 of 32 lanes
+/// on average and taking ~30% of the issue slots; one a step: shell-1m −5.9%, spheres-1m
+/// −3.5%, grass-1m −1.5%, rocks-1m ±0, city-1m +3.7% (H200; README, "Benchmark suite").
+/// Closest-hit and shadow walks keep a node's triangles in its step (there, one a step
+/// was slower: README, "A leaf's triangles spread over the walk's steps").
+const AO_ONE_TRIANGLE: bool = true;
+
 /// Shadow rays stop this fraction of the way to the light's (offset) point, so that the
 /// light's own triangle never counts as an occluder.
 const SHADOW_RAY_END: f32 = 0.9999;
@@ -249,7 +259,7 @@ impl<'a> SceneBuffers<'a> {
             let wanted = START_TOGETHER.min(crate::subgroup::count(true));
             loop {
                 if !done {
-                    done = walk.step::<PLAIN, true, TraversalNode>(
+                    done = walk.step::<PLAIN, true, AO_ONE_TRIANGLE, TraversalNode>(
                         self.triangles,
                         &cut,
                         self.nodes,
@@ -872,7 +882,7 @@ pub fn cwbvh_traverse<const PLAIN: bool, N: WideNode>(
     }
     // Front to back: a closest hit found early shortens the ray for the rest of the walk.
     let mut walk = CwbvhWalk::new(ray, t_max, INVALID, AO_NEAR_FIRST);
-    while !walk.step::<PLAIN, false, N>(triangles, cutouts, nodes, any) {}
+    while !walk.step::<PLAIN, false, false, N>(triangles, cutouts, nodes, any) {}
     walk.hit
 }
 
@@ -896,7 +906,7 @@ pub fn cwbvh_ao_walk_nodes<const PLAIN: bool, N: WideNode>(
     loop {
         // A step visits a node while its group has interior children left (`step`).
         visited += (walk.group_bits & INTERIOR_HITS != 0) as u32;
-        if walk.step::<PLAIN, true, N>(triangles, cutouts, nodes, true) {
+        if walk.step::<PLAIN, true, AO_ONE_TRIANGLE, N>(triangles, cutouts, nodes, true) {
             return visited;
         }
     }
@@ -922,6 +932,10 @@ struct CwbvhWalk {
     /// The node group being visited: child base index and hit bits.
     group_base: u32,
     group_bits: u32,
+    /// With `step`'s `ONE`: the triangles waiting to be tested, a step testing one
+    /// (base index, bits); further groups wait on the stack (their top byte 0).
+    tri_base: u32,
+    tri_bits: u32,
 }
 
 impl CwbvhWalk {
@@ -937,6 +951,8 @@ impl CwbvhWalk {
             sp: 0,
             group_base: 0,
             group_bits: 0,
+            tri_base: 0,
+            tri_bits: 0,
         };
         walk.restart(ray, t_max, leaves, order);
         walk
@@ -957,6 +973,7 @@ impl CwbvhWalk {
         // The root is the only "interior child" of a virtual group at node 0.
         self.group_base = 0;
         self.group_bits = 1u32 << 31;
+        self.tri_bits = 0;
     }
 
     /// Visit one node and test the triangles of it the ray hits; true when the walk is over
@@ -965,9 +982,13 @@ impl CwbvhWalk {
     /// in memory (AO on the CPU backend 10–15% slower). `SKIPS`: the walk does not test
     /// the triangle its ray leaves (`leaves`; pooled AO rays); without it the walk tests
     /// every triangle, with no compare for it in the loop (the compare against `INVALID`
-    /// made Cornell MIS 0.8% slower on the H200).
+    /// made Cornell MIS 0.8% slower on the H200). `ONE`: the step tests at most one
+    /// triangle of the walk's waiting group (`tri_bits`), the node's hit triangles joining
+    /// it (or waiting on the stack, a group whose top byte is 0, where one is in hand); the
+    /// walk is over when nodes and triangles are both done. The stack is full only in a
+    /// tree near `CWBVH_STACK` levels deep: then the node's triangles are tested at once.
     #[inline(always)]
-    fn step<const PLAIN: bool, const SKIPS: bool, N: WideNode>(
+    fn step<const PLAIN: bool, const SKIPS: bool, const ONE: bool, N: WideNode>(
         &mut self,
         triangles: &[UVec4],
         cutouts: &Cutouts,
@@ -985,9 +1006,7 @@ impl CwbvhWalk {
             let relative = (self.group_bits & 0xff & !(0xffff_ffffu32 << slot)).count_ones();
             let child = self.group_base + relative;
             if self.group_bits & INTERIOR_HITS != 0 && self.sp < CWBVH_STACK {
-                self.stack[self.sp] =
-                    MaybeUninit::new(UVec2::new(self.group_base, self.group_bits));
-                self.sp += 1;
+                self.push(self.group_base, self.group_bits);
             }
             count!(NODES);
             let node = N::read(nodes, child);
@@ -996,38 +1015,68 @@ impl CwbvhWalk {
             self.group_bits = (hits & INTERIOR_HITS) | node.imask();
             tri_base = node.primitive_base();
             tri_bits = hits & TRIANGLE_HITS;
+            if ONE && tri_bits != 0 {
+                if self.tri_bits == 0 {
+                    (self.tri_base, self.tri_bits) = (tri_base, tri_bits);
+                    tri_bits = 0;
+                } else if self.sp < CWBVH_STACK {
+                    self.push(tri_base, tri_bits);
+                    tri_bits = 0;
+                }
+                // Else the stack is full: the group is tested in this step, below.
+            }
+        }
+        if ONE && self.tri_bits != 0 {
+            let k = first_bit_high(self.tri_bits);
+            self.tri_bits &= !(1u32 << k);
+            if self.test::<PLAIN, SKIPS>(triangles, cutouts, self.tri_base + k, any) {
+                return true;
+            }
         }
         while tri_bits != 0 {
             let k = first_bit_high(tri_bits);
             tri_bits &= !(1u32 << k);
-            let tester = &self.tester;
-            if (!SKIPS || tri_base + k != self.leaves)
-                && test_leaf::<PLAIN>(
-                    triangles,
-                    cutouts,
-                    tester,
-                    tri_base + k,
-                    1,
-                    &mut self.hit,
-                    any,
-                )
-            {
+            if self.test::<PLAIN, SKIPS>(triangles, cutouts, tri_base + k, any) {
                 return true;
             }
         }
         if self.group_bits & INTERIOR_HITS == 0 {
             if self.sp == 0 {
-                return true;
+                return !ONE || self.tri_bits == 0;
             }
-            self.sp -= 1;
-            // SAFETY: entry `sp` was pushed (written) before `sp` passed it.
-            unsafe {
-                let entry = self.stack[self.sp].assume_init();
-                self.group_base = entry.x;
-                self.group_bits = entry.y;
+            // SAFETY: entry `sp - 1` was pushed (written) before `sp` passed it.
+            let entry = unsafe { self.stack[self.sp - 1].assume_init() };
+            if !ONE || entry.y & INTERIOR_HITS != 0 {
+                self.sp -= 1;
+                (self.group_base, self.group_bits) = (entry.x, entry.y);
+            } else if self.tri_bits == 0 {
+                // A waiting triangle group: taken once the one in hand is done.
+                self.sp -= 1;
+                (self.tri_base, self.tri_bits) = (entry.x, entry.y);
             }
         }
         false
+    }
+
+    #[inline(always)]
+    fn push(&mut self, base: u32, bits: u32) {
+        self.stack[self.sp] = MaybeUninit::new(UVec2::new(base, bits));
+        self.sp += 1;
+    }
+
+    /// Test triangle `i` (never the one the ray leaves, with `SKIPS`); true when `any` and
+    /// it was hit (the walk is over).
+    #[inline(always)]
+    fn test<const PLAIN: bool, const SKIPS: bool>(
+        &mut self,
+        triangles: &[UVec4],
+        cutouts: &Cutouts,
+        i: u32,
+        any: bool,
+    ) -> bool {
+        let tester = &self.tester;
+        (!SKIPS || i != self.leaves)
+            && test_leaf::<PLAIN>(triangles, cutouts, tester, i, 1, &mut self.hit, any)
     }
 }
 
