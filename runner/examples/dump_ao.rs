@@ -1,0 +1,114 @@
+//! Diagnostic (not part of the product): dump what one AO frame's rays need — the GPU's
+//! CWBVH nodes, the triangles and each pixel's AO point (origin, triangle, normal word,
+//! key) — for the CUDA port of the walk to profile (tests/bench/cuda_ao). Usage:
+//! `dump_ao <out dir> <bench options...>`, e.g. `dump_ao /tmp/d --scene shell-1m
+//! --width 1920 --height 1080 --bvh-quality high --integrator ao --spp 1 --ao-rays 64`.
+use std::io::Write;
+
+use clap::Parser;
+use kernels::integrators::ao::AoRays;
+use kernels::integrators::camera_sample;
+
+#[derive(Parser)]
+struct Cli {
+    out: std::path::PathBuf,
+    #[command(flatten)]
+    bench: runner::bench::BenchArgs,
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let args = &cli.bench;
+    let mut scene = runner::scene::load(&args.scene).expect("scene");
+    let params =
+        runner::options::frame_params(&args.scene, &args.kernel, &mut scene).expect("params");
+    std::fs::create_dir_all(&cli.out).unwrap();
+    std::fs::write(
+        cli.out.join("nodes.bin"),
+        bytemuck::cast_slice(&scene.nodes),
+    )
+    .unwrap();
+    std::fs::write(
+        cli.out.join("tris.bin"),
+        bytemuck::cast_slice(&scene.triangles),
+    )
+    .unwrap();
+    let buffers = scene.kernel();
+    let (w, h) = (params.width, params.height);
+    let reference = std::env::var_os("DUMP_REF").is_some();
+    let strata = kernels::integrators::ao::strata(&params);
+    let rows: Vec<(Vec<u32>, Vec<f32>)> = {
+        use rayon::prelude::*;
+        (0..h)
+            .into_par_iter()
+            .map(|y| {
+                let mut row = Vec::with_capacity(6 * w as usize);
+                let mut open = Vec::with_capacity(w as usize);
+                for x in 0..w {
+                    let (ray, mut rng) = camera_sample(&params, x, y, 0);
+                    let hit = buffers.closest_hit::<true>(&ray, f32::INFINITY);
+                    if hit.is_hit() {
+                        let s = kernels::bvh::surface_hit(&buffers, &ray, &hit);
+                        let r = AoRays::new(s.p, s.prim, s.n, &mut rng);
+                        if reference {
+                            open.push(kernels::integrators::ao::ambient_occlusion::<true>(
+                                &buffers,
+                                r,
+                                params.ao_rays,
+                                strata,
+                                params.ao_distance,
+                            ));
+                        }
+                        row.extend([
+                            r.origin.x.to_bits(),
+                            r.origin.y.to_bits(),
+                            r.origin.z.to_bits(),
+                            r.normal,
+                            r.key,
+                            r.prim,
+                        ]);
+                    } else {
+                        row.extend([0, 0, 0, 0, 0, u32::MAX]);
+                        open.push(0.0);
+                    }
+                }
+                (row, open)
+            })
+            .collect()
+    };
+    let mut f = std::fs::File::create(cli.out.join("points.bin")).unwrap();
+    for (r, _) in &rows {
+        f.write_all(bytemuck::cast_slice(r)).unwrap();
+    }
+    if reference {
+        let mut f = std::fs::File::create(cli.out.join("ref.bin")).unwrap();
+        for (_, o) in &rows {
+            f.write_all(bytemuck::cast_slice(o)).unwrap();
+        }
+    }
+    std::fs::write(
+        cli.out.join("params.txt"),
+        format!(
+            "{} {} {} {} {} {} {}\n",
+            w,
+            h,
+            params.ao_rays,
+            params.ao_distance,
+            params.ao_order,
+            scene.nodes.len(),
+            scene.triangles.len()
+        ),
+    )
+    .unwrap();
+    eprintln!(
+        "dumped {}: {} nodes, {} triangles, {}x{}, ao {} rays to {}, order {}",
+        cli.out.display(),
+        scene.nodes.len(),
+        scene.triangles.len(),
+        w,
+        h,
+        params.ao_rays,
+        params.ao_distance,
+        params.ao_order
+    );
+}
