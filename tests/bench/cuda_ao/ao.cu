@@ -254,134 +254,8 @@ __device__ __forceinline__ void restart(Walk &w, const Ray &r, float t_max, u32 
 __device__ __forceinline__ u32 first_bit_high(u32 x) { return 31 - __clz(x); }
 
 
-#ifdef TRI_ONE
-// A step visits a node and tests one pending triangle: a lane's triangles wait in its
-// triangle group (further groups on the stack, top byte 0) while it goes on with nodes.
-__device__ __forceinline__ bool step(Walk &w, const uint4 *__restrict__ nodes, const uint4 *__restrict__ tris, u32 nnodes, u32 &visits) {
-    if (w.gbits & INTERIOR_HITS) {
-        u32 slot_bit = first_bit_high(w.gbits);
-        w.gbits &= ~(1u << slot_bit);
-        u32 slot = (slot_bit - FIRST_INTERIOR_BIT) ^ w.oct_inv;
-        u32 relative = __popc(w.gbits & 0xff & ~(0xffffffffu << slot));
-        u32 child = w.gbase + relative;
-        if ((w.gbits & INTERIOR_HITS) && w.sp < STACK_SIZE) {
-            w.stack[w.sp] = make_uint2(w.gbase, w.gbits);
-            w.sp++;
-        }
-        u32 k = min(5 * child, 5 * nnodes - 5);
-        uint4 n0 = nodes[k], n1 = nodes[k + 1], n2 = nodes[k + 2], n3 = nodes[k + 3], n4 = nodes[k + 4];
-        V3 p = v3(__uint_as_float(n0.x), __uint_as_float(n0.y), __uint_as_float(n0.z));
-        u32 e = n0.w;
-        V3 scale = v3(__uint_as_float((e & 0xff) << 23), __uint_as_float(((e >> 8) & 0xff) << 23), __uint_as_float(((e >> 16) & 0xff) << 23));
-        NodeRay r;
-        r.slope = scale * w.inv;
-        r.offset = (p - w.o) * w.inv;
-        r.neg[0] = w.inv.x < 0.0f; r.neg[1] = w.inv.y < 0.0f; r.neg[2] = w.inv.z < 0.0f;
-        r.oct_inv = w.oct_inv;
-        r.t_max = w.t;
-        u32 hits = half_hits(r, n1.z, n2.x, n2.z, n3.x, n3.z, n4.x, n4.z) |
-                   half_hits(r, n1.w, n2.y, n2.w, n3.y, n3.w, n4.y, n4.w);
-        w.gbase = n1.x;
-        w.gbits = (hits & INTERIOR_HITS) | (e >> 24);
-        u32 nt = hits & TRIANGLE_HITS;
-        if (nt) {
-            if (w.tbits == 0) { w.tbase = n1.y; w.tbits = nt; }
-            else if (w.sp < STACK_SIZE) { w.stack[w.sp] = make_uint2(n1.y, nt); w.sp++; }
-        }
-    }
-    if (w.tbits) {
-        u32 k = first_bit_high(w.tbits);
-        w.tbits &= ~(1u << k);
-        if (w.tbase + k != w.leaves && intersect(w.tst, tris, w.tbase + k, w.t)) { w.hit = true; return true; }
-    }
-    if (!(w.gbits & INTERIOR_HITS)) {
-        if (w.sp == 0) return w.tbits == 0;
-        uint2 en = w.stack[w.sp - 1];
-        if (en.y & INTERIOR_HITS) { w.sp--; w.gbase = en.x; w.gbits = en.y; }
-        else if (w.tbits == 0) { w.sp--; w.tbase = en.x; w.tbits = en.y; }
-    }
-    return false;
-}
-#else
-__device__ __forceinline__ bool step(Walk &w, const uint4 *__restrict__ nodes, const uint4 *__restrict__ tris, u32 nnodes, u32 &visits) {
-    u32 tri_base = 0, tri_bits = 0;
-    if (w.gbits & INTERIOR_HITS) {
-        u32 slot_bit = first_bit_high(w.gbits);
-        w.gbits &= ~(1u << slot_bit);
-        u32 slot = (slot_bit - FIRST_INTERIOR_BIT) ^ w.oct_inv;
-        u32 relative = __popc(w.gbits & 0xff & ~(0xffffffffu << slot));
-        u32 child = w.gbase + relative;
-        if ((w.gbits & INTERIOR_HITS) && w.sp < STACK_SIZE) {
-            w.stack[w.sp] = make_uint2(w.gbase, w.gbits);
-            w.sp++;
-        }
-#ifdef COUNT
-        visits++;
-#endif
-        u32 k = min(5 * child, 5 * nnodes - 5);
-        uint4 n0 = nodes[k], n1 = nodes[k + 1], n2 = nodes[k + 2], n3 = nodes[k + 3], n4 = nodes[k + 4];
-        V3 p = v3(__uint_as_float(n0.x), __uint_as_float(n0.y), __uint_as_float(n0.z));
-        u32 e = n0.w;
-        V3 scale = v3(__uint_as_float((e & 0xff) << 23), __uint_as_float(((e >> 8) & 0xff) << 23), __uint_as_float(((e >> 16) & 0xff) << 23));
-        NodeRay r;
-        r.slope = scale * w.inv;
-        r.offset = (p - w.o) * w.inv;
-        r.neg[0] = w.inv.x < 0.0f; r.neg[1] = w.inv.y < 0.0f; r.neg[2] = w.inv.z < 0.0f;
-        r.oct_inv = w.oct_inv;
-        r.t_max = w.t;
-        u32 hits = half_hits(r, n1.z, n2.x, n2.z, n3.x, n3.z, n4.x, n4.z) |
-                   half_hits(r, n1.w, n2.y, n2.w, n3.y, n3.w, n4.y, n4.w);
-        w.gbase = n1.x;
-        w.gbits = (hits & INTERIOR_HITS) | (e >> 24);
-        tri_base = n1.y;
-        tri_bits = hits & TRIANGLE_HITS;
-    }
-#ifndef NO_TRI
-    while (tri_bits != 0) {
-        u32 k = first_bit_high(tri_bits);
-        tri_bits &= ~(1u << k);
-        if (tri_base + k != w.leaves && intersect(w.tst, tris, tri_base + k, w.t)) {
-            w.hit = true;
-            return true;
-        }
-    }
-#endif
-    if (!(w.gbits & INTERIOR_HITS)) {
-        if (w.sp == 0) return true;
-        w.sp--;
-        uint2 en = w.stack[w.sp];
-        w.gbase = en.x;
-        w.gbits = en.y;
-    }
-    return false;
-}
-#endif
-
-struct Args {
-    const uint4 *__restrict__ nodes; const uint4 *__restrict__ tris; const u32 *__restrict__ points;
-    int width, height; u32 ao_rays; float dist; u32 order, nnodes; float *out; unsigned long long *visit_sum;
-};
-
-// Phase 1: clear, then (after a barrier) put the pixel's point into the pool.
-__device__ __forceinline__ void group_clear(u32 *mem, u32 thread) {
-    mem[ESCAPED + thread] = 0;
-    if (thread < GROUP / 4) mem[POINT_THREADS + thread] = 0;
-    if (thread == 0) { mem[NEXT] = 0; mem[POINTS] = 0; }
-}
-__device__ __forceinline__ bool group_point(const Args &A, u32 *mem, u32 thread, int x, int y) {
-    if (x >= A.width || y >= A.height) return false;
-    const u32 *pt = A.points + 6 * (size_t)(y * A.width + x);
-    if (pt[5] == INVALID) return false;
-    int base = RAYS + RAYS_WORDS * thread;
-    for (int i = 0; i < 6; i++) mem[base + i] = pt[i];
-    u32 slot = atomicAdd(&mem[POINTS], 1);
-    atomicAdd(&mem[POINT_THREADS + slot / 4], thread << (slot % 4 * 8));
-    return true;
-}
-
-#ifdef DUAL
-// Two walks per thread stepped together: both nodes loaded before either is tested, so
-// one thread has two independent memory latencies in flight.
+// A step's parts: pick the next child (pushing the rest of its group), read and test its
+// node, and take the next group from the stack once the node group is done.
 struct Pick { u32 child; bool interior; };
 __device__ __forceinline__ Pick pick(Walk &w) {
     Pick p; p.interior = (w.gbits & INTERIOR_HITS) != 0; p.child = 0;
@@ -415,6 +289,83 @@ __device__ __forceinline__ bool finish(Walk &w) {
     }
     return false;
 }
+#ifdef TRI_ONE
+// A step visits a node and tests one pending triangle: a lane's triangles wait in its
+// triangle group (further groups on the stack, top byte 0) while it goes on with nodes.
+__device__ __forceinline__ bool step(Walk &w, const uint4 *__restrict__ nodes, const uint4 *__restrict__ tris, u32 nnodes, u32 &visits) {
+    Pick pk = pick(w);
+    if (pk.interior) {
+        u32 k = min(5 * pk.child, 5 * nnodes - 5);
+        u32 nbase, nt;
+        visit(w, nodes[k], nodes[k + 1], nodes[k + 2], nodes[k + 3], nodes[k + 4], nbase, nt);
+        if (nt) {
+            if (w.tbits == 0) { w.tbase = nbase; w.tbits = nt; }
+            else if (w.sp < STACK_SIZE) { w.stack[w.sp] = make_uint2(nbase, nt); w.sp++; }
+        }
+    }
+    if (w.tbits) {
+        u32 k = first_bit_high(w.tbits);
+        w.tbits &= ~(1u << k);
+        if (w.tbase + k != w.leaves && intersect(w.tst, tris, w.tbase + k, w.t)) { w.hit = true; return true; }
+    }
+    if (!(w.gbits & INTERIOR_HITS)) {
+        if (w.sp == 0) return w.tbits == 0;
+        uint2 en = w.stack[w.sp - 1];
+        if (en.y & INTERIOR_HITS) { w.sp--; w.gbase = en.x; w.gbits = en.y; }
+        else if (w.tbits == 0) { w.sp--; w.tbase = en.x; w.tbits = en.y; }
+    }
+    return false;
+}
+#else
+__device__ __forceinline__ bool step(Walk &w, const uint4 *__restrict__ nodes, const uint4 *__restrict__ tris, u32 nnodes, u32 &visits) {
+    u32 tri_base = 0, tri_bits = 0;
+    Pick pk = pick(w);
+    if (pk.interior) {
+#ifdef COUNT
+        visits++;
+#endif
+        u32 k = min(5 * pk.child, 5 * nnodes - 5);
+        visit(w, nodes[k], nodes[k + 1], nodes[k + 2], nodes[k + 3], nodes[k + 4], tri_base, tri_bits);
+    }
+#ifndef NO_TRI
+    while (tri_bits != 0) {
+        u32 k = first_bit_high(tri_bits);
+        tri_bits &= ~(1u << k);
+        if (tri_base + k != w.leaves && intersect(w.tst, tris, tri_base + k, w.t)) {
+            w.hit = true;
+            return true;
+        }
+    }
+#endif
+    return finish(w);
+}
+#endif
+
+struct Args {
+    const uint4 *__restrict__ nodes; const uint4 *__restrict__ tris; const u32 *__restrict__ points;
+    int width, height; u32 ao_rays; float dist; u32 order, nnodes; float *out; unsigned long long *visit_sum;
+};
+
+// Phase 1: clear, then (after a barrier) put the pixel's point into the pool.
+__device__ __forceinline__ void group_clear(u32 *mem, u32 thread) {
+    mem[ESCAPED + thread] = 0;
+    if (thread < GROUP / 4) mem[POINT_THREADS + thread] = 0;
+    if (thread == 0) { mem[NEXT] = 0; mem[POINTS] = 0; }
+}
+__device__ __forceinline__ bool group_point(const Args &A, u32 *mem, u32 thread, int x, int y) {
+    if (x >= A.width || y >= A.height) return false;
+    const u32 *pt = A.points + 6 * (size_t)(y * A.width + x);
+    if (pt[5] == INVALID) return false;
+    int base = RAYS + RAYS_WORDS * thread;
+    for (int i = 0; i < 6; i++) mem[base + i] = pt[i];
+    u32 slot = atomicAdd(&mem[POINTS], 1);
+    atomicAdd(&mem[POINT_THREADS + slot / 4], thread << (slot % 4 * 8));
+    return true;
+}
+
+#ifdef DUAL
+// Two walks per thread stepped together: both nodes loaded before either is tested, so
+// one thread has two independent memory latencies in flight.
 __device__ __forceinline__ void step2(Walk &a, Walk &b, bool la, bool lb, const uint4 *__restrict__ nodes, const uint4 *__restrict__ tris, u32 nnodes, bool &da, bool &db) {
     Pick pa = la ? pick(a) : Pick{0, false};
     Pick pb = lb ? pick(b) : Pick{0, false};
