@@ -10,7 +10,7 @@
 //   NO_CANON  edge products rounded, no canonical order (CUDA's __fmul_rn)
 //   EDGE_XOR  edge products apart by an XOR with a run-time zero
 //   TRI_DOT   the vertex permutation as dot products    MANTISSA  bytes to floats by OR
-//   DUAL      two walks a thread            TRI_ONE   one triangle a step (as 63f173f)
+//   DUAL      two walks a thread            TRI_ONE   one triangle a step (as 1a39cca)
 //   START_TOGETHER=N, STACK_SIZE=N
 // HOST_EMULATION builds it for the CPU (g++ with a shim of the CUDA names, one thread
 // draining each workgroup's pool) to check a variant against the CPU before device time.
