@@ -6,8 +6,9 @@
 use std::io::Write;
 
 use clap::Parser;
-use kernels::integrators::ao::AoRays;
+use kernels::integrators::ao::{self, AoRays};
 use kernels::integrators::camera_sample;
+use kernels::types::INVALID;
 
 #[derive(Parser)]
 struct Cli {
@@ -36,7 +37,7 @@ fn main() {
     let buffers = scene.kernel();
     let (w, h) = (params.width, params.height);
     let reference = std::env::var_os("DUMP_REF").is_some();
-    let strata = kernels::integrators::ao::strata(&params);
+    let strata = ao::strata(&params);
     let rows: Vec<(Vec<u32>, Vec<f32>)> = {
         use rayon::prelude::*;
         (0..h)
@@ -46,31 +47,31 @@ fn main() {
                 let mut open = Vec::with_capacity(w as usize);
                 for x in 0..w {
                     let (ray, mut rng) = camera_sample(&params, x, y, 0);
-                    let hit = buffers.closest_hit::<true>(&ray, f32::INFINITY);
-                    if hit.is_hit() {
-                        let s = kernels::bvh::surface_hit(&buffers, &ray, &hit);
-                        let r = AoRays::new(s.p, s.prim, s.n, &mut rng);
+                    let Some((p, prim, n)) = ao::camera_hit::<true>(&buffers, &ray) else {
+                        row.extend([0, 0, 0, 0, 0, INVALID]);
                         if reference {
-                            open.push(kernels::integrators::ao::ambient_occlusion::<true>(
-                                &buffers,
-                                r,
-                                params.ao_rays,
-                                strata,
-                                params.ao_distance,
-                            ));
+                            open.push(0.0);
                         }
-                        row.extend([
-                            r.origin.x.to_bits(),
-                            r.origin.y.to_bits(),
-                            r.origin.z.to_bits(),
-                            r.normal,
-                            r.key,
-                            r.prim,
-                        ]);
-                    } else {
-                        row.extend([0, 0, 0, 0, 0, u32::MAX]);
-                        open.push(0.0);
+                        continue;
+                    };
+                    let r = AoRays::new(p, prim, n, &mut rng);
+                    if reference {
+                        open.push(ao::ambient_occlusion::<true>(
+                            &buffers,
+                            r,
+                            params.ao_rays,
+                            strata,
+                            params.ao_distance,
+                        ));
                     }
+                    row.extend([
+                        r.origin.x.to_bits(),
+                        r.origin.y.to_bits(),
+                        r.origin.z.to_bits(),
+                        r.normal,
+                        r.key,
+                        r.prim,
+                    ]);
                 }
                 (row, open)
             })

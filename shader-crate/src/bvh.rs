@@ -67,8 +67,9 @@ pub const START_TOGETHER: u32 = 12;
 /// step`'s `ONE`): a lane's triangles wait while it goes on with nodes, instead of the warp
 /// testing one lane's several triangles while the others idle. Nsight Compute on a CUDA
 /// port of this walk (shell-1m, H100) found the triangle loop running with 2.6 of 32 lanes
-/// on average and taking ~30% of the issue slots; one a step: shell-1m −5.9%, spheres-1m
-/// −3.5%, grass-1m −1.5%, rocks-1m ±0, city-1m +3.7% (H200; README, "Benchmark suite").
+/// on average and issuing 35% of the warp instructions; one a step: shell-1m −10.2%,
+/// spheres-1m −7.4%, grass-1m −3.9%, rocks-1m −3.6%, city-1m +1.7% (H100, one round;
+/// README, "Benchmark suite").
 /// Closest-hit and shadow walks keep a node's triangles in its step (there, one a step
 /// was slower: README, "A leaf's triangles spread over the walk's steps").
 const AO_ONE_TRIANGLE: bool = true;

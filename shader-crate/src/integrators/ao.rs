@@ -114,7 +114,7 @@ pub fn strata(params: &FrameParams) -> Strata {
 
 /// The visible point of a camera ray (position, triangle, normal), or None where it
 /// leaves the scene.
-fn camera_hit<const PLAIN: bool>(scene: &SceneBuffers, ray: &Ray) -> Option<(Vec3, u32, Vec3)> {
+pub fn camera_hit<const PLAIN: bool>(scene: &SceneBuffers, ray: &Ray) -> Option<(Vec3, u32, Vec3)> {
     let hit = scene.closest_hit::<PLAIN>(ray, f32::INFINITY);
     if !hit.is_hit() {
         return None;
