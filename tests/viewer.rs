@@ -4,7 +4,9 @@
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 
-struct Xvfb(Child);
+/// A running Xvfb; its stdout pipe stays open as long as the server runs, so a later write
+/// to it cannot kill the server with SIGPIPE.
+struct Xvfb(Child, #[allow(dead_code)] std::process::ChildStdout);
 
 impl Drop for Xvfb {
     fn drop(&mut self) {
@@ -13,8 +15,11 @@ impl Drop for Xvfb {
     }
 }
 
-/// Start Xvfb on a free display; `-displayfd` prints its number once it accepts clients,
-/// so concurrent test runs never collide and nothing races the server's start.
+/// How long a fresh Xvfb may take to accept its first client.
+const XVFB_READY: std::time::Duration = std::time::Duration::from_secs(20);
+
+/// Start Xvfb on a free display; `-displayfd` prints its number, so concurrent test runs
+/// never collide; then wait until a client can connect, so nothing races the server's start.
 fn start_xvfb(extra: &[&str]) -> (Xvfb, String) {
     let mut child = Command::new("Xvfb")
         .args([
@@ -32,13 +37,26 @@ fn start_xvfb(extra: &[&str]) -> (Xvfb, String) {
         .spawn()
         .expect("Xvfb runs the viewer test: apt-get install xvfb");
     let mut line = String::new();
-    let stdout = child.stdout.take().unwrap();
-    std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut line).unwrap();
+    let mut stdout = std::io::BufReader::new(child.stdout.take().unwrap());
+    std::io::BufRead::read_line(&mut stdout, &mut line).unwrap();
     let n: u32 = line
         .trim()
         .parse()
         .unwrap_or_else(|_| panic!("Xvfb did not report a display: '{line}'"));
-    (Xvfb(child), format!(":{n}"))
+    let display = format!(":{n}");
+    let deadline = std::time::Instant::now() + XVFB_READY;
+    while let Err(e) = x11rb::connect(Some(&display)) {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "Xvfb on {display} accepts no client: {e}"
+        );
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "Xvfb on {display} exited"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    (Xvfb(child, stdout.into_inner()), display)
 }
 
 /// The runner binary with `args`, on X display `display` (none: no display at all).
