@@ -105,9 +105,11 @@ pub fn intersect_watertight(
     let cx = c.x - s.x * c.z;
     let cy = c.y - s.y * c.z;
     // Scaled barycentrics: u weights p0, v weights p1, w weights p2.
-    let u = edge_function(cx, cy, bx, by);
-    let v = edge_function(ax, ay, cx, cy);
-    let w = edge_function(bx, by, ax, ay);
+    // 0 (a material index is below 2^31), read from the triangle: see `edge_function`.
+    let z = tri.material >> 31;
+    let u = edge_function(cx, cy, bx, by, z);
+    let v = edge_function(ax, ay, cx, cy, z);
+    let w = edge_function(bx, by, ax, ay, z);
     if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
         return None;
     }
@@ -143,26 +145,22 @@ pub fn intersect_watertight(
 }
 
 /// The edge function px·qy − py·qx of the projected edge from p to q (twice the signed
-/// area of the origin, p, q), computed with the endpoints in one canonical order and then
-/// signed. Woop's test is watertight only if the two triangles sharing an edge get exactly
-/// opposite values for it; they see the edge in opposite directions, and a compiler or GPU
-/// driver may fuse either product into a multiply-add (rust-gpu emits no NoContraction),
-/// which rounds px·qy − py·qx and −(qx·py − qy·px) differently: rays slipped through
-/// shared edges on the H100 (2 in 133 M inside a closed sphere) but never on the CPU. In
-/// one order both triangles run the same operations on the same numbers, fused or not.
-fn edge_function(px: f32, py: f32, qx: f32, qy: f32) -> f32 {
-    let swap = qx < px || (qx == px && qy < py);
-    let (ax, ay, bx, by) = if swap {
-        (qx, qy, px, py)
-    } else {
-        (px, py, qx, qy)
-    };
-    let e = ax * by - ay * bx;
-    if swap {
-        -e
-    } else {
-        e
-    }
+/// area of the origin, p, q), with both products rounded. Woop's test is watertight only if
+/// the two triangles sharing an edge get exactly opposite values for it; they see the edge
+/// in opposite directions, and a GPU driver may fuse either product into a multiply-add
+/// (rust-gpu emits no NoContraction), which rounds px·qy − py·qx and −(qx·py − qy·px)
+/// differently: rays slipped through shared edges on the H100 (2 in 133 M inside a closed
+/// sphere) but never on the CPU. Each product's bits pass through an XOR with `zero`, 0
+/// at run time but read from the triangle's words (its material index's top bit), so
+/// that the shader compiler cannot fold it: no multiply-add can be formed, and both
+/// products are rounded on every device, as on the CPU, where Rust never fuses. (A zero
+/// computed from a buffer's length instead was folded by the NVIDIA driver: rays leaked
+/// again.) Before, the endpoints were put in one canonical order, with compares and
+/// selects; the XOR is cheaper (README, "Benchmark suite").
+#[inline(always)]
+fn edge_function(px: f32, py: f32, qx: f32, qy: f32, zero: u32) -> f32 {
+    let rounded = |p: f32| f32::from_bits(p.to_bits() ^ zero);
+    rounded(px * qy) - rounded(py * qx)
 }
 
 /// Bound on the relative error of n chained float operations: nε / (1 − nε), ε = 2⁻²⁴.

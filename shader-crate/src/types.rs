@@ -18,6 +18,7 @@ pub const INVALID: u32 = u32::MAX;
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
 pub struct Triangle {
     pub p0: [f32; 3],
+    /// Below 2^31: the watertight test reads its top bit as a 0 (`intersect::edge_function`).
     pub material: u32,
     pub p1: [f32; 3],
     pub light: u32,
