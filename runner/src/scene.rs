@@ -249,6 +249,14 @@ impl Scene {
                 "dropped {duplicates} duplicate triangle(s) (the same three vertices and material as another)"
             ));
         }
+        // The watertight test reads a material index's top bit as its zero
+        // (`kernels::intersect::edge_function`); no file can hold this many materials.
+        if materials.len() > kernels::types::MATERIALS_MAX {
+            bail!(
+                "the scene has {} materials, more than 2^31",
+                materials.len()
+            );
+        }
         if let Some(t) = triangles
             .iter()
             .find(|t| t.material as usize >= materials.len())

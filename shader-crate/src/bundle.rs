@@ -463,10 +463,10 @@ impl<const AVX: bool> RayLanes<AVX> {
                 _mm_shuffle_ps::<0b11_00_10_01>(x, x),
                 _mm_shuffle_ps::<0b11_00_10_01>(y, y),
             );
-            // `edge_function` without its canonical order of the endpoints, which matters
-            // only where a multiply-add may be fused: here px·qy − py·qx and −(qx·py −
-            // qy·px) round the same (products commute, a − b = −(b − a)), up to the sign
-            // of a zero, which the sign test ignores.
+            // `edge_function`: both products rounded (its XOR with zero is for the GPU's
+            // compiler, which might fuse them), so px·qy − py·qx and −(qx·py − qy·px)
+            // round the same (products commute, a − b = −(b − a)), up to the sign of a
+            // zero, which the sign test ignores.
             let e = _mm_sub_ps(_mm_mul_ps(px, qy), _mm_mul_ps(py, qx));
             let negative = _mm_movemask_ps(_mm_cmplt_ps(e, zero)) & 0b111;
             let positive = _mm_movemask_ps(_mm_cmpgt_ps(e, zero)) & 0b111;
@@ -784,8 +784,8 @@ mod tests {
 
     /// The edge pre-filter never rules out a ray the watertight test accepts: on a grid
     /// of triangles whose shared vertices and edges the rays pass through exactly (axis
-    /// and diagonal directions, where projected vertices tie and the edges' canonical
-    /// order decides), and on random triangles and rays. It must also rule out most
+    /// and diagonal directions, where projected vertices tie and an edge function is 0),
+    /// and on random triangles and rays. It must also rule out most
     /// misses, or it would be no filter.
     #[test]
     fn edge_candidates_keep_every_hit() {

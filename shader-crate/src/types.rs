@@ -30,6 +30,8 @@ pub struct Triangle {
 /// traversal tests at every hit (the rest of the field indexes its shading attributes,
 /// which then exist: the mask is read at the hit's texture coordinates).
 pub const ALPHA_TESTED: u32 = 1 << 31;
+/// Materials a scene may have: `Triangle::material` stays below 2^31.
+pub const MATERIALS_MAX: usize = 1 << 31;
 /// The next bit: the mask is a coverage fraction (glTF alphaMode BLEND), not a cut-out. A
 /// hit is solid with probability alpha: where alpha exceeds a hash of the hit's
 /// barycentrics (hashed alpha testing, Wyman & McGuire 2017), so on average a surface of
