@@ -122,6 +122,54 @@ fn ao_images_agree((g, c): (Image, Image), w: u32, h: u32) {
     );
 }
 
+/// A kernel that the driver cuts short is an error, never an image with holes: lavapipe
+/// (CI's driver) ends a shader's loops after 65,535 iterations in all, which the AO
+/// workgroup pool inside shell-100k at 64 rays a point runs past, and the invocations it
+/// stops write nothing (`render::check_complete`). A driver without that limit must give
+/// the CPU's image.
+#[test]
+fn a_kernel_cut_short_is_an_error_not_an_image() {
+    let (w, h) = (64, 32);
+    let sa = SceneOptions {
+        scene: Some("shell-100k".into()),
+        ..scene_args(w, h)
+    };
+    let ka = KernelOptions {
+        ao_rays: 64,
+        ..kernel_args(Integrator::Ao, 1)
+    };
+    let mut scene = load_scene(&sa).unwrap();
+    let params = frame_params(&sa, &ka, &mut scene).unwrap();
+    let mut gpu = gpu_backend(&scene, w, h);
+    let mut cpu = CpuBackend::new(&scene, w, h);
+    let (c, _) = render(&mut cpu, Integrator::Ao, &params, 1, 1, false).unwrap();
+    match render(&mut gpu, Integrator::Ao, &params, 1, 1, false) {
+        Ok((g, _)) => {
+            // 64 rays a pixel: a ray that grazes an edge may flip (FMA contraction).
+            let differ = g
+                .pixels
+                .iter()
+                .zip(&c.pixels)
+                .filter(|(a, b)| (**a - **b).abs().max_element() > 1e-5);
+            assert!(differ
+                .clone()
+                .all(|(a, b)| (*a - *b).abs().max_element() <= 2.0 / 64.0 + 1e-5));
+            assert!(
+                differ.count() * 100 <= (w * h) as usize,
+                "{}",
+                gpu.describe()
+            );
+        }
+        Err(e) => {
+            let e = e.to_string();
+            assert!(
+                e.contains("pixels without") && e.contains("--backend cpu"),
+                "{e}"
+            );
+        }
+    }
+}
+
 #[test]
 fn split_into_passes_does_not_change_the_image() {
     // Sample s draws stream s whatever pass it falls in: 1 pass of 4 == 4 passes of 1.

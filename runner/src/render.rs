@@ -7,6 +7,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use kernels::types::FrameParams;
 
 use crate::backend::{Backend, DeviceOptions};
+use crate::bail;
 use crate::error::{Context, Result};
 use crate::integrator::Integrator;
 use crate::options::{KernelOptions, SceneOptions};
@@ -219,11 +220,34 @@ pub fn render(
     )?;
     bar.finish_and_clear();
     let accum = backend.read_accumulation()?;
+    check_complete(&accum, spp)?;
     stats.rays = backend.rays_traced()?;
     Ok((
         Image::from_accumulation(params.width, params.height, &accum),
         stats,
     ))
+}
+
+/// Iterations that llvmpipe (lavapipe) lets a shader's loops run in all before it ends them
+/// (Mesa's `LP_MAX_TGSI_LOOP_ITERATIONS`).
+const LLVMPIPE_LOOP_LIMIT: &str = "65,535";
+
+/// That every pixel of an accumulation of `spp` samples holds all of them (its fourth
+/// channel counts them), so that a kernel a driver cut short is an error, not a picture
+/// with holes: lavapipe ends a shader's loops after `LLVMPIPE_LOOP_LIMIT` iterations in
+/// all, which the AO workgroup pool on a deep scene exceeds (shell-100k with 64 AO rays),
+/// and the invocations it stops write nothing.
+pub fn check_complete(accum: &[[f32; 4]], spp: u32) -> Result<()> {
+    let short = accum.iter().filter(|a| a[3] != spp as f32).count();
+    if short > 0 {
+        bail!(
+            "the device left {short} of {} pixels without their {spp} sample(s), and nothing \
+             was written (a software Vulkan driver such as lavapipe stops a kernel's loops \
+             after {LLVMPIPE_LOOP_LIMIT} iterations); use --backend cpu, or fewer --ao-rays",
+            accum.len()
+        );
+    }
+    Ok(())
 }
 
 /// Render a sequence of frames whose cameras come from `camera_of(frame)`. With
@@ -257,6 +281,7 @@ pub fn render_sequence(
         backend.clear()?; // each frame accumulates on its own; `average` sums them below
         accumulate(backend, integrator, &p, spp, 1, &bar, &mut stats)?;
         let accum = backend.read_accumulation()?;
+        check_complete(&accum, spp)?;
         stats.rays += backend.rays_traced()?;
         on_frame(f, &Image::from_accumulation(p.width, p.height, &accum))?;
         if sum.is_empty() || !average {
@@ -309,4 +334,25 @@ pub struct RenderArgs {
     /// Also write every frame to this directory as frame_NNNN.<ext of --out>
     #[arg(long, value_name = "DIR")]
     pub out_dir: Option<PathBuf>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_accumulation_missing_samples_is_an_error() {
+        let full = vec![[0.5, 0.5, 0.5, 4.0]; 6];
+        assert!(check_complete(&full, 4).is_ok());
+        // A pixel no invocation wrote (lavapipe's loop limit), and one short of a pass.
+        for hole in [[0.0; 4], [0.5, 0.5, 0.5, 3.0]] {
+            let mut holes = full.clone();
+            holes[2] = hole;
+            let e = check_complete(&holes, 4).unwrap_err().to_string();
+            assert!(
+                e.contains("1 of 6 pixels") && e.contains("--backend cpu"),
+                "{e}"
+            );
+        }
+    }
 }
