@@ -381,6 +381,10 @@ impl App {
         if self.state.save_requested || (done && self.args.screenshot.is_some()) {
             self.state.save_requested = false;
             let accum = gfx.backend.read_accumulation()?;
+            // Every pixel holds as many samples as the fullest one, or the driver cut the
+            // kernels short (`render::check_complete`).
+            let most = accum.iter().map(|a| a[3]).fold(0.0, f32::max);
+            crate::render::check_complete(&accum, most as u32)?;
             let image = Image::from_accumulation(w, h, &accum);
             let path = match &self.args.screenshot {
                 Some(p) if done => p.clone(),
