@@ -985,11 +985,12 @@ impl CwbvhWalk {
     /// takes neither a test nor, with `ONE`, a step of its own (the pilot's steps per AO ray:
     /// shell-1m 12.09 → 11.62, spheres-1m 7.03 → 6.65, grass-1m 10.88 → 10.85); without
     /// it the walk keeps every triangle, with no compare for it in the loop (the compare
-    /// against `INVALID` made Cornell MIS 0.8% slower on the H200). `ONE`: the step tests at most one
-    /// triangle of the walk's waiting group (`tri_bits`), the node's hit triangles joining
-    /// it (or waiting on the stack, a group whose top byte is 0, where one is in hand); the
-    /// walk is over when nodes and triangles are both done. The stack is full only in a
-    /// tree near `CWBVH_STACK` levels deep: then the node's triangles are tested at once.
+    /// against `INVALID` made Cornell MIS 0.8% slower on the H200). `ONE`: the step tests
+    /// at most one triangle of the walk's waiting group (`tri_bits`), the node's hit
+    /// triangles joining it (or waiting on the stack, a group whose top byte is 0, where one
+    /// is in hand); the walk is over when nodes and triangles are both done. The stack is
+    /// full only in a tree near `CWBVH_STACK` levels deep: then the node's triangles are
+    /// tested at once.
     #[inline(always)]
     fn step<const PLAIN: bool, const SKIPS: bool, const ONE: bool, N: WideNode>(
         &mut self,
@@ -1021,7 +1022,7 @@ impl CwbvhWalk {
             if SKIPS {
                 // The triangle the ray leaves never takes a test, nor a step.
                 let k = self.leaves.wrapping_sub(tri_base);
-                if k < 24 {
+                if k < FIRST_INTERIOR_BIT {
                     tri_bits &= !(1u32 << k);
                 }
             }
