@@ -264,7 +264,7 @@ fn bench_scene(args: &BenchArgs, loaded: &Scene) -> Result<BenchReport> {
     let per_ray = None;
     // The last run's image is whole (read after the timed runs): a driver that cut the
     // kernels short would otherwise report their times as ours.
-    crate::render::check_complete(&backend.read_accumulation()?, k.spp)?;
+    crate::render::read_complete(backend.as_mut(), k.spp)?;
     // Rays of the last run (the count restarts with each run's clear).
     let rays_per_frame = backend.rays_traced()?;
     let breakdown = per_pass

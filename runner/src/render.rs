@@ -219,8 +219,7 @@ pub fn render(
         &mut stats,
     )?;
     bar.finish_and_clear();
-    let accum = backend.read_accumulation()?;
-    check_complete(&accum, spp)?;
+    let accum = read_complete(backend, spp)?;
     stats.rays = backend.rays_traced()?;
     Ok((
         Image::from_accumulation(params.width, params.height, &accum),
@@ -248,6 +247,13 @@ pub fn check_complete(accum: &[[f32; 4]], spp: u32) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The backend's accumulation of `spp` samples a pixel, whole (`check_complete`).
+pub fn read_complete(backend: &mut dyn Backend, spp: u32) -> Result<Vec<[f32; 4]>> {
+    let accum = backend.read_accumulation()?;
+    check_complete(&accum, spp)?;
+    Ok(accum)
 }
 
 /// Render a sequence of frames whose cameras come from `camera_of(frame)`. With
@@ -280,8 +286,7 @@ pub fn render_sequence(
         p.sample_offset = params.sample_offset + f * spp;
         backend.clear()?; // each frame accumulates on its own; `average` sums them below
         accumulate(backend, integrator, &p, spp, 1, &bar, &mut stats)?;
-        let accum = backend.read_accumulation()?;
-        check_complete(&accum, spp)?;
+        let accum = read_complete(backend, spp)?;
         stats.rays += backend.rays_traced()?;
         on_frame(f, &Image::from_accumulation(p.width, p.height, &accum))?;
         if sum.is_empty() || !average {
