@@ -11,7 +11,7 @@ use kernels::bvh::{
 };
 use kernels::intersect::{Hit, Ray};
 use kernels::rng::Rng;
-use kernels::types::{CwBvhNode, CwBvhPlanes, Material, Triangle, INVALID};
+use kernels::types::{CwBvhNode, CwBvhPlanes, CwBvhSlotNode, Material, Triangle, INVALID};
 use runner::accel::{build_bvh2, build_cwbvh, reorder, BvhQuality};
 use runner::scene::default_scene_path;
 
@@ -121,6 +121,8 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
         bytemuck::cast_slice(&cw.nodes),
     );
     let decoded = runner::accel::host_nodes(&cw.nodes);
+    let gpu_nodes: Vec<CwBvhSlotNode> = cw.nodes.iter().map(runner::accel::gpu_node).collect();
+    let gpu: &[UVec4] = bytemuck::cast_slice(&gpu_nodes);
     // ... and the triangle buffers.
     let (t2, tc, words): (&[UVec4], &[UVec4], &[UVec4]) = (
         bytemuck::cast_slice(&t2),
@@ -164,6 +166,20 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
             (on_bytes.prim, on_bytes.t.to_bits()),
             "decoded planes {ray:?}"
         );
+        // The GPU's nodes, with their slots' bits stored: the same walk, the same hit.
+        let on_gpu_nodes = cwbvh_traverse::<false, CwBvhSlotNode>(
+            tc,
+            &Cutouts::NONE,
+            gpu,
+            &ray,
+            f32::INFINITY,
+            false,
+        );
+        assert_eq!(
+            (on_gpu_nodes.prim, on_gpu_nodes.t.to_bits()),
+            (on_bytes.prim, on_bytes.t.to_bits()),
+            "the GPU's nodes {ray:?}"
+        );
         // Any-hit with a limit around the closest hit: blocked iff something is nearer.
         let limit = if want.is_hit() {
             want.t * (0.5 + rng.next_f32())
@@ -186,6 +202,12 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
                 .is_hit(),
             blocked,
             "cwbvh any-hit on decoded planes {ray:?} {limit}"
+        );
+        assert_eq!(
+            cwbvh_traverse::<false, CwBvhSlotNode>(tc, &Cutouts::NONE, gpu, &ray, limit, true)
+                .is_hit(),
+            blocked,
+            "cwbvh any-hit on the GPU's nodes {ray:?} {limit}"
         );
     }
     // The probe must actually exercise hits, not only misses.

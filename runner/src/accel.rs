@@ -397,6 +397,21 @@ pub fn host_nodes(nodes: &[kernels::bvh::BvhNode]) -> Vec<glam::UVec4> {
     return bytemuck::cast_slice(nodes).to_vec();
 }
 
+/// The node layout the GPU's traversal reads (`kernels::bvh::TraversalNode` on the GPU).
+#[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
+pub type GpuNode = kernels::types::CwBvhSlotNode;
+#[cfg(any(feature = "traversal-bvh2", feature = "traversal-brute-force"))]
+pub type GpuNode = kernels::bvh::BvhNode;
+
+/// A built node as the GPU reads it: a CWBVH node with its slots' hit-mask bits, other
+/// kinds as they are.
+pub fn gpu_node(node: &kernels::bvh::BvhNode) -> GpuNode {
+    #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
+    return GpuNode::of(node);
+    #[cfg(any(feature = "traversal-bvh2", feature = "traversal-brute-force"))]
+    return *node;
+}
+
 /// Depth of a tree rooted at node 0 whose interior nodes' children are the nodes
 /// `children(node)` (a lone root is depth 1). Indices past the end are skipped.
 fn tree_depth<N>(nodes: &[N], children: impl Fn(&N) -> std::ops::Range<usize>) -> usize {

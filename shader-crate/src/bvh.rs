@@ -10,8 +10,8 @@ use crate::sampling::orthonormal_basis;
 use crate::texture::sample_bilinear;
 use crate::types::cwbvh_meta::{FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
 use crate::types::{
-    Bvh2Node, CwBvhNode, CwBvhPlanes, GBufferTexel, Light, Material, TextureInfo, Triangle,
-    TriangleShading, AO_NEAR_FIRST, INVALID, METAL_THRESHOLD, NORMAL_MAP_HEIGHT,
+    Bvh2Node, CwBvhNode, CwBvhPlanes, CwBvhSlotNode, GBufferTexel, Light, Material, TextureInfo,
+    Triangle, TriangleShading, AO_NEAR_FIRST, INVALID, METAL_THRESHOLD, NORMAL_MAP_HEIGHT,
     SHADING_BITANGENT_FLIPPED, SHADING_COLOURS, SHADING_NORMALS, SHADING_TANGENTS, SHADING_UVS,
 };
 use core::mem::MaybeUninit;
@@ -664,7 +664,8 @@ fn slab_hit(ray: &NodeRay, near: Vec3, far: Vec3) -> bool {
 /// words: the bits (1 for an interior child, a leaf's 1, 3 or 7, none for an empty slot)
 /// and where they go (24 + slot XOR the octant, or a leaf's first triangle's offset).
 /// Four slots' worth in a handful of word operations, where a slot at a time took as many
-/// per slot.
+/// per slot: the CPU's (decoded planes); the GPU's nodes store each slot's bits
+/// ([`CwBvhSlotNode`]).
 #[inline(always)]
 fn child_bits4(meta4: u32, oct_inv: u32) -> (u32, u32) {
     // Bit 4 of each interior slot's byte: its bits 3 and 4 both set (`is_interior`); the
@@ -683,7 +684,8 @@ fn slot_bits(bits4: u32, position4: u32, shift: u32) -> u32 {
 }
 
 /// The hit-mask bits of a child slot with meta byte `meta`, when the ray hits its box
-/// (what [`child_bits4`] computes four slots at a time; the tests hold the two to each other).
+/// (what [`child_bits4`] computes four slots at a time, and [`CwBvhSlotNode`] stores; the
+/// tests hold them to each other).
 /// Interior child: index = 24 + slot, XOR the ray octant, which orders the children front
 /// to back when popped highest bit first. Leaf child: its triangles' bits from its first
 /// offset. An empty slot (meta 0) is a leaf of no triangles: no bits.
@@ -697,35 +699,7 @@ fn child_bits(ray: &NodeRay, meta: u32) -> u32 {
     }
 }
 
-/// Hit bits of the 4 children whose bytes are in one word of each of the node's child
-/// arrays (half 0: children 0–3, half 1: children 4–7), decoded a child at a time. The
-/// bytes stay int-to-float conversions: converting them by OR-ing into 2^23's mantissa and
-/// subtracting 2^23 (exact, no conversion instruction) made every kernel 8–14% slower on
-/// the H200 (AO city-1m 33.0 → 36.7 ms, Cornell MIS 2.08 → 2.36): the driver's conversion
-/// selects the byte itself.
-#[inline(always)]
-fn cwbvh_half_hits(ray: &NodeRay, meta4: u32, x: (u32, u32), y: (u32, u32), z: (u32, u32)) -> u32 {
-    let (nx, fx) = near_far(x.0, x.1, ray.negative[0]);
-    let (ny, fy) = near_far(y.0, y.1, ray.negative[1]);
-    let (nz, fz) = near_far(z.0, z.1, ray.negative[2]);
-    // The four children written out: rust-gpu leaves a loop over them a loop in the
-    // SPIR-V, its byte shifts variables.
-    let (bits4, position4) = child_bits4(meta4, ray.oct_inv);
-    let child = |shift: u32| {
-        let q = |w: u32| ((w >> shift) & 0xff) as f32;
-        let near = Vec3::new(q(nx), q(ny), q(nz));
-        let far = Vec3::new(q(fx), q(fy), q(fz));
-        let bits = slot_bits(bits4, position4, shift);
-        if slab_hit(ray, near, far) {
-            bits
-        } else {
-            0
-        }
-    };
-    child(0) | child(8) | child(16) | child(24)
-}
-
-/// [`cwbvh_half_hits`] over decoded planes (`x`, `y`, `z`: the 4 children's min and max),
+/// [`slot_half_hits`] over decoded planes (`x`, `y`, `z`: the 4 children's min and max),
 /// the four slab tests side by side in `Vec4`s (one SSE register each on the CPU, which is
 /// the only target that reads decoded planes) and the hit bits selected without a branch.
 /// Each lane runs the scalar test's operations on the same numbers, so the hits are the
@@ -805,16 +779,11 @@ impl WideNode for CwBvhNode {
     fn read(nodes: &[UVec4], i: u32) -> Self {
         CwBvhNode::read(nodes, i)
     }
+    /// The GPU's test ([`CwBvhSlotNode`]'s), its slot bits made on the spot: the host's
+    /// pilot (`runner::ao_order`) walks the built nodes themselves.
     #[inline(always)]
     fn hits(&self, origin: Vec3, inv_dir: Vec3, oct_inv: u32, t_max: f32) -> u32 {
-        // Child box = p + scale · q: the ray into the node's quantised grid.
-        let ray = NodeRay::new(self.p, self.scale(), origin, inv_dir, oct_inv, t_max);
-        let (m, n) = (self.child_min_x, self.child_max_x);
-        let (k, l) = (self.child_min_y, self.child_max_y);
-        let (i, j) = (self.child_min_z, self.child_max_z);
-        let meta = self.child_meta;
-        cwbvh_half_hits(&ray, meta[0], (m[0], n[0]), (k[0], l[0]), (i[0], j[0]))
-            | cwbvh_half_hits(&ray, meta[1], (m[1], n[1]), (k[1], l[1]), (i[1], j[1]))
+        CwBvhSlotNode::of(self).hits(origin, inv_dir, oct_inv, t_max)
     }
     fn child_base(&self) -> u32 {
         self.child_base_idx
@@ -853,18 +822,126 @@ impl WideNode for CwBvhPlanes {
     }
 }
 
+impl WideNode for CwBvhSlotNode {
+    #[inline(always)]
+    fn read(nodes: &[UVec4], i: u32) -> Self {
+        CwBvhSlotNode::read(nodes, i)
+    }
+    #[inline(always)]
+    fn hits(&self, origin: Vec3, inv_dir: Vec3, oct_inv: u32, t_max: f32) -> u32 {
+        let n = &self.node;
+        // Child box = p + scale · q: the ray into the node's quantised grid.
+        let ray = NodeRay::new(n.p, n.scale(), origin, inv_dir, oct_inv, t_max);
+        let (m, x) = (n.child_min_x, n.child_max_x);
+        let (k, y) = (n.child_min_y, n.child_max_y);
+        let (i, z) = (n.child_min_z, n.child_max_z);
+        let s = self.slot_bits;
+        let slots = slot_half_hits(
+            &ray,
+            [s[0], s[1], s[2], s[3]],
+            (m[0], x[0]),
+            (k[0], y[0]),
+            (i[0], z[0]),
+        ) | slot_half_hits(
+            &ray,
+            [s[4], s[5], s[6], s[7]],
+            (m[1], x[1]),
+            (k[1], y[1]),
+            (i[1], z[1]),
+        );
+        interior_in_priority_order(slots, oct_inv)
+    }
+    fn child_base(&self) -> u32 {
+        self.node.child_base_idx
+    }
+    fn primitive_base(&self) -> u32 {
+        self.node.primitive_base_idx
+    }
+    fn imask(&self) -> u32 {
+        self.node.imask()
+    }
+}
+
+/// The slot bits (`bits`, [`CwBvhSlotNode::slot_bits`]) of the 4 children whose bytes are
+/// in one word of each of the node's child arrays (half 0: children 0–3, half 1: children
+/// 4–7) that the ray enters: a hit child costs one OR of its stored bits. Decoding them
+/// from the meta bytes here instead, four slots' worth at a time (`child_bits4`, until
+/// the slot bits were stored), cost every kernel 1–3.5% (H100, two rounds: AO rocks-1m
+/// 10.37 → 10.05 ms, spheres-1m 22.88 → 22.12, city-1m 18.03 → 17.39, grass-1m 26.63 →
+/// 25.76, shell-1m 52.77 → 51.01, Cornell 3.94 → 3.82; Cornell MIS 1.508 → 1.492,
+/// many-lights NEE 0.651 → 0.640). The bytes stay int-to-float conversions: converting
+/// them by OR-ing into 2^23's mantissa and subtracting 2^23 (exact, no conversion
+/// instruction) made every kernel 8–14% slower on the H200 (AO city-1m 33.0 → 36.7 ms,
+/// Cornell MIS 2.08 → 2.36): the driver's conversion selects the byte itself.
+#[inline(always)]
+fn slot_half_hits(
+    ray: &NodeRay,
+    bits: [u32; 4],
+    x: (u32, u32),
+    y: (u32, u32),
+    z: (u32, u32),
+) -> u32 {
+    let (nx, fx) = near_far(x.0, x.1, ray.negative[0]);
+    let (ny, fy) = near_far(y.0, y.1, ray.negative[1]);
+    let (nz, fz) = near_far(z.0, z.1, ray.negative[2]);
+    // The four children written out: rust-gpu leaves a loop over them a loop in the
+    // SPIR-V, its byte shifts variables.
+    let child = |shift: u32, bits: u32| {
+        let q = |w: u32| ((w >> shift) & 0xff) as f32;
+        let near = Vec3::new(q(nx), q(ny), q(nz));
+        let far = Vec3::new(q(fx), q(fy), q(fz));
+        if slab_hit(ray, near, far) {
+            bits
+        } else {
+            0
+        }
+    };
+    child(0, bits[0]) | child(8, bits[1]) | child(16, bits[2]) | child(24, bits[3])
+}
+
+/// A node's hit mask with its interior children's bits moved from 24 + slot (where
+/// [`CwBvhSlotNode::slot_bits`] keeps them) to 24 + slot XOR `oct_inv`, their traversal
+/// priority (see [`cwbvh_octant_inv`]): the high byte's bits swapped singly, in pairs and
+/// by nibbles as `oct_inv`'s three bits say. As selects: the same swaps as XOR masks made
+/// of the bits ("delta swaps") were 0.3–1.5% slower (H100, same runs as above).
+#[inline(always)]
+fn interior_in_priority_order(mask: u32, oct_inv: u32) -> u32 {
+    let swap = |m: u32, by: u32, low: u32| {
+        ((m >> by) & low) | ((m & low) << by) | (m & !(low | (low << by)))
+    };
+    let m = mask;
+    let m = if oct_inv & 1 != 0 {
+        swap(m, 1, 0x5500_0000)
+    } else {
+        m
+    };
+    let m = if oct_inv & 2 != 0 {
+        swap(m, 2, 0x3300_0000)
+    } else {
+        m
+    };
+    if oct_inv & 4 != 0 {
+        swap(m, 4, 0x0f00_0000)
+    } else {
+        m
+    }
+}
+
 /// The node layout the traversal reads on this target. The GPU reads obvhs's 80-byte
-/// nodes: with planes decoded to f32 (224 bytes) its kernels were 0–9% slower (H200, AO
+/// nodes with each slot's hit-mask bits after them (112 bytes, [`CwBvhSlotNode`]; the
+/// bits save more than their loads cost, see [`slot_half_hits`]); with planes decoded to
+/// f32 (224 bytes) its kernels were 0–9% slower (H200, AO
 /// 1080p: rocks-1m, spheres-1m, city-1m the same, grass-1m 45.7 → 49.1 ms, shell-1m 100.3
 /// → 105.0; Cornell MIS 1.96 → 2.15, many-lights NEE 0.913 → 0.981), as it pays for the
 /// loads more than for the conversions. The CPU pays for the conversions: AO on the CPU
 /// backend 16–21% faster with decoded planes, 27–41% with their children tested four at a
 /// time and the node read inlined (rocks-1m, spheres-1m, city-1m, grass-1m; 2-core box;
 /// README, "The CPU backend against Embree"). The host
-/// builds each backend's buffer (`runner::accel::host_nodes`); the traversal is the same
+/// builds each backend's buffer (`runner::accel::host_nodes`, `runner::gpu::backend`'s
+/// `gpu_node`); the traversal is the same
 /// code over either ([`WideNode`]), and both give the same t to the bit.
 #[cfg(target_arch = "spirv")]
-pub type TraversalNode = CwBvhNode;
+pub type TraversalNode = CwBvhSlotNode;
 #[cfg(not(target_arch = "spirv"))]
 pub type TraversalNode = CwBvhPlanes;
 
@@ -1374,6 +1451,55 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn stored_slot_bits_in_priority_order_are_each_slots_bits() {
+        // Every meta byte obvhs writes, in every slot, beside others, for every octant (a
+        // leaf's triangles end by offset 24).
+        let mut metas = vec![0u32];
+        metas.extend((0..8).map(|slot| (1 << 5) | (24 + slot)));
+        for (bits, count) in [(1u32, 1), (3, 2), (7, 3)] {
+            metas.extend((0..=24 - count).map(|offset| (bits << 5) | offset));
+        }
+        for (i, _) in metas.iter().enumerate() {
+            let meta = |k: usize| {
+                let m = metas[(i * (2 * k + 1) + k) % metas.len()];
+                // An interior child's byte names its own slot.
+                if cwbvh_meta_is_interior(m) {
+                    (1 << 5) | (24 + k as u32)
+                } else {
+                    m
+                }
+            };
+            let word = |h: usize| (0..4).fold(0, |w, k| w | meta(4 * h + k) << (8 * k));
+            let node = CwBvhNode {
+                child_meta: [word(0), word(1)],
+                ..Default::default()
+            };
+            let slots = CwBvhSlotNode::of(&node);
+            for oct_inv in 0..8 {
+                let ray = NodeRay::new([0.0; 3], Vec3::ONE, Vec3::ZERO, Vec3::ONE, oct_inv, 1.0);
+                // All slots' bits together, as a node whose children are all hit gives them.
+                let all = slots.slot_bits.iter().fold(0, |m, b| m | b);
+                let want = (0..8).fold(0, |m, k| m | child_bits(&ray, meta(k)));
+                assert_eq!(
+                    interior_in_priority_order(all, oct_inv),
+                    want,
+                    "{node:?} {oct_inv}"
+                );
+                for (k, &bits) in slots.slot_bits.iter().enumerate() {
+                    assert_eq!(
+                        interior_in_priority_order(bits, oct_inv),
+                        child_bits(&ray, meta(k))
+                    );
+                }
+            }
+        }
+    }
+
+    fn cwbvh_meta_is_interior(meta: u32) -> bool {
+        meta != 0 && crate::types::cwbvh_meta::is_interior(meta)
     }
 
     /// A triangle in the z = 0 plane (normal +z) with texture coordinates at its corners.

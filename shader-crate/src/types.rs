@@ -702,6 +702,60 @@ impl CwBvhNode {
     }
 }
 
+/// A [`CwBvhNode`] as the GPU reads it: obvhs's five words, then each slot's hit-mask bits
+/// (`slot_bits`: a leaf's triangles at their offsets, an interior child's bit 24 + slot,
+/// 0 for an empty slot), so that a hit child costs the slab test one OR instead of the
+/// bit decoding of its meta byte.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
+pub struct CwBvhSlotNode {
+    pub node: CwBvhNode,
+    pub slot_bits: [u32; 8],
+}
+
+impl CwBvhSlotNode {
+    /// 16-byte words a node takes in the node buffer.
+    pub const WORDS: usize = 7;
+
+    /// Node `i` of a node buffer read as words.
+    pub fn read(nodes: &[UVec4], i: u32) -> Self {
+        let w = buffer_read(nodes, Self::WORDS * i as usize, Self::WORDS);
+        let s = [buffer_word(nodes, w + 5), buffer_word(nodes, w + 6)];
+        Self {
+            node: CwBvhNode::from_words([
+                buffer_word(nodes, w),
+                buffer_word(nodes, w + 1),
+                buffer_word(nodes, w + 2),
+                buffer_word(nodes, w + 3),
+                buffer_word(nodes, w + 4),
+            ]),
+            slot_bits: [
+                s[0].x, s[0].y, s[0].z, s[0].w, s[1].x, s[1].y, s[1].z, s[1].w,
+            ],
+        }
+    }
+
+    /// `node` with its slots' hit-mask bits.
+    pub fn of(node: &CwBvhNode) -> Self {
+        let mut slot_bits = [0; 8];
+        for (k, bits) in slot_bits.iter_mut().enumerate() {
+            let meta = (node.child_meta[k / 4] >> (8 * (k % 4))) & 0xff;
+            *bits = if meta == 0 {
+                0
+            } else if cwbvh_meta::is_interior(meta) {
+                1 << cwbvh_meta::index(meta)
+            } else {
+                cwbvh_meta::triangle_bits(meta) << cwbvh_meta::index(meta)
+            };
+        }
+        Self {
+            node: *node,
+            slot_bits,
+        }
+    }
+}
+
 /// A [`CwBvhNode`] with its child planes decoded from bytes to the f32 offsets from `p`
 /// they stand for (224 bytes instead of 80): the layout the CPU backend traverses (see
 /// `bvh::TraversalNode`). A byte q of axis exponent e stands for q · 2^(e − 127), 8
@@ -835,6 +889,7 @@ const _: () = {
     assert!(core::mem::size_of::<Bvh2Node>() == 16 * Bvh2Node::WORDS);
     assert!(core::mem::size_of::<CwBvhNode>() == 16 * CwBvhNode::WORDS);
     assert!(core::mem::size_of::<CwBvhPlanes>() == 16 * CwBvhPlanes::WORDS);
+    assert!(core::mem::size_of::<CwBvhSlotNode>() == 16 * CwBvhSlotNode::WORDS);
     assert!(core::mem::size_of::<Triangle>() == 16 * Triangle::WORDS);
 };
 

@@ -16,7 +16,7 @@ use super::pipelines::{workgroups, IMAGE_WORKGROUP, RESTIR_WORKGROUP};
 use super::timestamps::{Timestamps, MAX_TIMED_PASSES};
 use crate::backend::Backend;
 use crate::bail;
-use crate::error::Result;
+use crate::error::{Context, Result};
 use crate::integrator::{Integrator, Kernel};
 use crate::restir::RestirState;
 use crate::scene::Scene;
@@ -70,7 +70,7 @@ pub fn check_fits(limits: &wgpu::Limits, scene: &Scene, width: u32, height: u32)
     check_buffer_size(
         limits,
         "the BVH node buffer",
-        std::mem::size_of_val(&scene.nodes[..]) as u64,
+        (scene.nodes.len() * std::mem::size_of::<crate::accel::GpuNode>()) as u64,
     )?;
     check_buffer_size(
         limits,
@@ -117,6 +117,42 @@ fn bytes_or_zero(bytes: &[u8], elem: usize) -> Cow<'_, [u8]> {
     } else {
         Cow::Borrowed(bytes)
     }
+}
+
+/// A storage buffer of `items` each converted by `convert` (one zeroed element when there
+/// are none), written into the buffer a chunk at a time: no converted copy of the whole
+/// array on the host.
+fn upload_converted<S, T: bytemuck::Pod>(
+    device: &wgpu::Device,
+    label: &str,
+    items: &[S],
+    convert: impl Fn(&S) -> T,
+) -> Result<wgpu::Buffer> {
+    const CHUNK: usize = 4096;
+    let size = std::mem::size_of::<T>();
+    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: (items.len().max(1) * size) as u64,
+        usage: wgpu::BufferUsages::STORAGE,
+        // wgpu zeroes a buffer mapped at creation.
+        mapped_at_creation: true,
+    });
+    {
+        let mut view = buffer
+            .slice(..)
+            .get_mapped_range_mut()
+            .context(|| format!("mapping the {label} buffer to write it"))?;
+        let mut converted = Vec::with_capacity(CHUNK);
+        for (k, chunk) in items.chunks(CHUNK).enumerate() {
+            converted.clear();
+            converted.extend(chunk.iter().map(&convert));
+            let start = k * CHUNK * size;
+            view.slice(start..start + chunk.len() * size)
+                .copy_from_slice(bytemuck::cast_slice(&converted));
+        }
+    }
+    buffer.unmap();
+    Ok(buffer)
 }
 
 /// A scene and an image on the GPU.
@@ -169,7 +205,7 @@ impl GpuBackend {
         });
         let triangles = upload::<Triangle>(device, "triangles", &scene.triangles);
         let materials = upload::<Material>(device, "materials", &scene.materials);
-        let nodes = upload::<kernels::bvh::BvhNode>(device, "bvh nodes", &scene.nodes);
+        let nodes = upload_converted(device, "bvh nodes", &scene.nodes, crate::accel::gpu_node)?;
         let lights = upload::<Light>(device, "lights", &scene.lights);
         let shading = upload::<TriangleShading>(device, "shading", &scene.attributes.shading);
         let textures = upload::<TextureInfo>(device, "textures", &scene.attributes.textures);
