@@ -60,7 +60,8 @@ pub const CWBVH_STACK: usize = 24;
 /// A ray's start (taking it from the pool, making its direction, the walk's set-up) costs
 /// the warp as much whether one lane or twelve run it, the others waiting: started one lane
 /// at a time, nearly every step of the walk paid for one. Aila & Laine 2009's dynamic fetch;
-/// 8 and 12 measured (README, "Benchmark suite"). On the CPU a thread is its own warp.
+/// 8, 10, 12, 14 and 16 measured (README, "Benchmark suite"). On the CPU a thread is its
+/// own warp.
 pub const START_TOGETHER: u32 = 12;
 
 /// The pooled AO walk tests one triangle a step, alongside that step's node (`CwbvhWalk::
