@@ -665,8 +665,8 @@ fn slab_hit(ray: &NodeRay, near: Vec3, far: Vec3) -> bool {
 /// words: the bits (1 for an interior child, a leaf's 1, 3 or 7, none for an empty slot)
 /// and where they go (24 + slot XOR the octant, or a leaf's first triangle's offset).
 /// Four slots' worth in a handful of word operations, where a slot at a time took as many
-/// per slot: the CPU's (decoded planes); the GPU's nodes store each slot's bits
-/// ([`CwBvhSlotNode`]).
+/// per slot: the CPU's walk over decoded planes, and the host's making of the bits the
+/// GPU's nodes store ([`CwBvhSlotNode::of`]).
 #[inline(always)]
 fn child_bits4(meta4: u32, oct_inv: u32) -> (u32, u32) {
     // Bit 4 of each interior slot's byte: its bits 3 and 4 both set (`is_interior`); the
@@ -682,6 +682,22 @@ fn child_bits4(meta4: u32, oct_inv: u32) -> (u32, u32) {
 #[inline(always)]
 fn slot_bits(bits4: u32, position4: u32, shift: u32) -> u32 {
     ((bits4 >> shift) & 7) << ((position4 >> shift) & 0x1f)
+}
+
+impl CwBvhSlotNode {
+    /// `node` with its slots' hit-mask bits: [`child_bits4`]'s at octant 0, which leaves
+    /// the interior children's bits in slot order.
+    pub fn of(node: &CwBvhNode) -> Self {
+        let mut bits = [0; 8];
+        for (k, b) in bits.iter_mut().enumerate() {
+            let (bits4, position4) = child_bits4(node.child_meta[k / 4], 0);
+            *b = slot_bits(bits4, position4, 8 * (k % 4) as u32);
+        }
+        Self {
+            node: *node,
+            slot_bits: bits,
+        }
+    }
 }
 
 /// The hit-mask bits of a child slot with meta byte `meta`, when the ray hits its box
@@ -938,8 +954,8 @@ fn interior_in_priority_order(mask: u32, oct_inv: u32) -> u32 {
 /// backend 16–21% faster with decoded planes, 27–41% with their children tested four at a
 /// time and the node read inlined (rocks-1m, spheres-1m, city-1m, grass-1m; 2-core box;
 /// README, "The CPU backend against Embree"). The host
-/// builds each backend's buffer (`runner::accel::host_nodes`, `runner::gpu::backend`'s
-/// `gpu_node`); the traversal is the same
+/// builds each backend's buffer (`runner::accel::host_nodes`, `runner::accel::gpu_node`);
+/// the traversal is the same
 /// code over either ([`WideNode`]), and both give the same t to the bit.
 #[cfg(target_arch = "spirv")]
 pub type TraversalNode = CwBvhSlotNode;
@@ -1467,7 +1483,7 @@ mod tests {
             let meta = |k: usize| {
                 let m = metas[(i * (2 * k + 1) + k) % metas.len()];
                 // An interior child's byte names its own slot.
-                if cwbvh_meta_is_interior(m) {
+                if crate::types::cwbvh_meta::is_interior(m) {
                     (1 << 5) | (24 + k as u32)
                 } else {
                     m
@@ -1497,10 +1513,6 @@ mod tests {
                 }
             }
         }
-    }
-
-    fn cwbvh_meta_is_interior(meta: u32) -> bool {
-        meta != 0 && crate::types::cwbvh_meta::is_interior(meta)
     }
 
     /// A triangle in the z = 0 plane (normal +z) with texture coordinates at its corners.

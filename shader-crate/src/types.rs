@@ -705,7 +705,8 @@ impl CwBvhNode {
 /// A [`CwBvhNode`] as the GPU reads it: obvhs's five words, then each slot's hit-mask bits
 /// (`slot_bits`: a leaf's triangles at their offsets, an interior child's bit 24 + slot,
 /// 0 for an empty slot), so that a hit child costs the slab test one OR instead of the
-/// bit decoding of its meta byte.
+/// bit decoding of its meta byte. `CwBvhSlotNode::of` (in `bvh`, beside the decoder it
+/// uses) makes one from a [`CwBvhNode`].
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
@@ -733,25 +734,6 @@ impl CwBvhSlotNode {
             slot_bits: [
                 s[0].x, s[0].y, s[0].z, s[0].w, s[1].x, s[1].y, s[1].z, s[1].w,
             ],
-        }
-    }
-
-    /// `node` with its slots' hit-mask bits.
-    pub fn of(node: &CwBvhNode) -> Self {
-        let mut slot_bits = [0; 8];
-        for (k, bits) in slot_bits.iter_mut().enumerate() {
-            let meta = (node.child_meta[k / 4] >> (8 * (k % 4))) & 0xff;
-            *bits = if meta == 0 {
-                0
-            } else if cwbvh_meta::is_interior(meta) {
-                1 << cwbvh_meta::index(meta)
-            } else {
-                cwbvh_meta::triangle_bits(meta) << cwbvh_meta::index(meta)
-            };
-        }
-        Self {
-            node: *node,
-            slot_bits,
         }
     }
 }
