@@ -12,6 +12,9 @@
 //   TRI_DOT   the vertex permutation as dot products    MANTISSA  bytes to floats by OR
 //   DUAL      two walks a thread            TRI_ONE   one triangle a step (as 1a39cca)
 //   START_TOGETHER=N, STACK_SIZE=N
+//   F16       a node's slab tests two children at a time in packed halves (bytes made
+//             halves by a byte permute), margins that keep them conservative
+//   F16S      the same on nodes that store their planes as halves (128 bytes a node)
 // HOST_EMULATION builds it for the CPU (g++ with a shim of the CUDA names, one thread
 // draining each workgroup's pool) to check a variant against the CPU before device time.
 #include <cstdio>
@@ -224,9 +227,90 @@ __device__ __forceinline__ u32 half_hits(const NodeRay &r, u32 meta4, u32 mnx, u
     return out;
 }
 
+
+#if defined(F16) || defined(F16S)
+#include <cuda_fp16.h>
+#ifdef F16S
+const u32 NODE_UINT4 = 8;
+#else
+const u32 NODE_UINT4 = 5;
+#endif
+// The slab test in halves, two children at a time. t is measured in units of the ray's
+// length (t_max = 1), the child's planes are t = b·s + o per axis (b its plane as an integer
+// 0..255), and each near plane is moved down and each far plane up by a margin M that
+// exceeds every rounding the halves make: with A = 255|s| + |o| per axis, the products and
+// sums are off by at most 2^-10·(A + M) + 2^-16 (s, o and the result each rounded once to
+// 11 bits, subnormals to 2^-25), and M = A/F16_MARGIN + 2^-14 (F16_MARGIN up to 1023). So
+// the test only ever says yes where the f32 one does or more. A node where some axis has A > 2^12 (a ray almost parallel to
+// it, or a node thousands of ray lengths away) takes the f32 test.
+#ifndef F16_MARGIN
+#define F16_MARGIN 256
+#endif
+struct NodeRay16 { __half2 s[3], n[3], f[3]; };
+__device__ __forceinline__ bool node_ray16(NodeRay16 &r, V3 scale, V3 p, V3 o, V3 inv_n) {
+    float ss[3] = {scale.x * inv_n.x, scale.y * inv_n.y, scale.z * inv_n.z};
+    float oo[3] = {(p.x - o.x) * inv_n.x, (p.y - o.y) * inv_n.y, (p.z - o.z) * inv_n.z};
+    float worst = 0.0f;
+#pragma unroll
+    for (int a = 0; a < 3; a++) {
+        float A = 255.0f * fabsf(ss[a]) + fabsf(oo[a]);
+        worst = fmaxf(worst, A);
+        float m = A * (1.0f / F16_MARGIN) + (1.0f / 16384.0f);
+        r.s[a] = __float2half2_rn(ss[a]);
+        r.n[a] = __float2half2_rn(oo[a] - m);
+        r.f[a] = __float2half2_rn(oo[a] + m);
+    }
+    return worst < 4096.0f;
+}
+__device__ __forceinline__ u32 pair_hits16(const NodeRay16 &r, u32 nx, u32 fx, u32 ny, u32 fy, u32 nz, u32 fz, u32 b0, u32 b1) {
+    const __half2 zero = __float2half2_rn(0.0f), one = __float2half2_rn(1.0f + 1.0f / 512.0f);
+#ifdef F16S
+#define H2(w) (*reinterpret_cast<const __half2 *>(&(w)))
+#else
+#define H2(w) __hsub2(*reinterpret_cast<const __half2 *>(&(w)), __float2half2_rn(1024.0f))
+#endif
+    __half2 tnx = __hfma2(H2(nx), r.s[0], r.n[0]), tny = __hfma2(H2(ny), r.s[1], r.n[1]), tnz = __hfma2(H2(nz), r.s[2], r.n[2]);
+    __half2 tfx = __hfma2(H2(fx), r.s[0], r.f[0]), tfy = __hfma2(H2(fy), r.s[1], r.f[1]), tfz = __hfma2(H2(fz), r.s[2], r.f[2]);
+    __half2 tn = __hmax2(__hmax2(__hmax2(tnx, tny), tnz), zero);
+    __half2 tf = __hmin2(__hmin2(__hmin2(tfx, tfy), tfz), one);
+    __half2 le = __hle2(tn, tf);
+    u32 m = *reinterpret_cast<u32 *>(&le);
+    return ((m & 0xffffu) ? b0 : 0u) | ((m >> 16) ? b1 : 0u);
+}
+#ifndef F16S
+// Bytes k and k+1 of a plane word as halves 1024 + b (0x64 above each byte).
+__device__ __forceinline__ u32 byte_pair(u32 w, u32 k) { return __byte_perm(w, 0x64646464u, k | (4u << 4) | ((k + 1) << 8) | (4u << 12)); }
+#endif
+__device__ __forceinline__ u32 half_hits16(const NodeRay16 &r16, const NodeRay &r, u32 meta4, u32 mnx, u32 mxx, u32 mny, u32 mxy, u32 mnz, u32 mxz, u32 mnx1, u32 mxx1, u32 mny1, u32 mxy1, u32 mnz1, u32 mxz1) {
+    u32 bits4, pos4;
+    child_bits4(meta4, r.oct_inv, bits4, pos4);
+    u32 b[4];
+#pragma unroll
+    for (int i = 0; i < 4; i++) b[i] = ((bits4 >> (8 * i)) & 7) << ((pos4 >> (8 * i)) & 0x1f);
+#ifdef F16S
+    // Stored halves, near and far planes already picked by address: mnx is the near x
+    // plane of children 0-1 of the half, mnx1 of children 2-3, mxx the far ones.
+    return pair_hits16(r16, mnx, mxx, mny, mxy, mnz, mxz, b[0], b[1]) | pair_hits16(r16, mnx1, mxx1, mny1, mxy1, mnz1, mxz1, b[2], b[3]);
+#else
+    u32 nx = r.neg[0] ? mxx : mnx, fx = r.neg[0] ? mnx : mxx;
+    u32 ny = r.neg[1] ? mxy : mny, fy = r.neg[1] ? mny : mxy;
+    u32 nz = r.neg[2] ? mxz : mnz, fz = r.neg[2] ? mnz : mxz;
+    u32 out = 0;
+#pragma unroll
+    for (u32 k = 0; k < 4; k += 2) {
+        u32 px = byte_pair(nx, k), qx = byte_pair(fx, k), py = byte_pair(ny, k), qy = byte_pair(fy, k), pz = byte_pair(nz, k), qz = byte_pair(fz, k);
+        out |= pair_hits16(r16, px, qx, py, qy, pz, qz, b[k], b[k + 1]);
+    }
+    return out;
+#endif
+}
+#else
+const u32 NODE_UINT4 = 5;
+#endif
+
 struct Walk {
     Tester tst;
-    V3 o, inv;
+    V3 o, inv, inv_n;
     u32 oct_inv;
     float t;
     bool hit;
@@ -240,6 +324,7 @@ __device__ __forceinline__ void restart(Walk &w, const Ray &r, float t_max, u32 
     w.tst = tester(r);
     w.o = r.o;
     w.inv = v3(safe_recip1(r.d.x), safe_recip1(r.d.y), safe_recip1(r.d.z));
+    w.inv_n = w.inv * (1.0f / t_max);
     u32 oct = ((r.d.x < 0.0f) << 2) | ((r.d.y < 0.0f) << 1) | (r.d.z < 0.0f);
     w.oct_inv = (7 - oct) ^ order;
     w.t = t_max;
@@ -282,6 +367,68 @@ __device__ __forceinline__ void visit(Walk &w, const uint4 &n0, const uint4 &n1,
     w.gbits = (hits & INTERIOR_HITS) | (e >> 24);
     tri_base = n1.y; tri_bits = hits & TRIANGLE_HITS;
 }
+#if defined(F16) || defined(F16S)
+#ifdef F16S
+// f32 slab test of four children whose planes are stored as halves (the fallback).
+__device__ __forceinline__ float hval(u32 w, u32 i) { return __half2float(__ushort_as_half((unsigned short)((w >> (16 * (i & 1))) & 0xffff))); }
+__device__ __forceinline__ u32 half_hits_s32(const NodeRay &r, u32 meta4, const u32 *lo[3], const u32 *hi[3]) {
+    u32 bits4, pos4;
+    child_bits4(meta4, r.oct_inv, bits4, pos4);
+    u32 out = 0;
+    for (u32 i = 0; i < 4; i++) {
+        float tn = 0.0f, tf = r.t_max;
+        float sl[3] = {r.slope.x, r.slope.y, r.slope.z}, of[3] = {r.offset.x, r.offset.y, r.offset.z};
+        for (int a = 0; a < 3; a++) {
+            float l = hval(lo[a][i >> 1], i), h = hval(hi[a][i >> 1], i);
+            float n = r.neg[a] ? h : l, f = r.neg[a] ? l : h;
+            tn = fmaxf(tn, n * sl[a] + of[a]);
+            tf = fminf(tf, f * sl[a] + of[a]);
+        }
+        u32 bits = ((bits4 >> (8 * i)) & 7) << ((pos4 >> (8 * i)) & 0x1f);
+        out |= tn <= tf ? bits : 0;
+    }
+    return out;
+}
+#endif
+__device__ __forceinline__ void visit16(Walk &w, const uint4 *__restrict__ nd, u32 &tri_base, u32 &tri_bits) {
+    uint4 n0 = nd[0], n1 = nd[1];
+    V3 p = v3(__uint_as_float(n0.x), __uint_as_float(n0.y), __uint_as_float(n0.z));
+    u32 e = n0.w;
+    V3 scale = v3(__uint_as_float((e & 0xff) << 23), __uint_as_float(((e >> 8) & 0xff) << 23), __uint_as_float(((e >> 16) & 0xff) << 23));
+    NodeRay r;
+    r.slope = scale * w.inv; r.offset = (p - w.o) * w.inv;
+    r.neg[0] = w.inv.x < 0.0f; r.neg[1] = w.inv.y < 0.0f; r.neg[2] = w.inv.z < 0.0f;
+    r.oct_inv = w.oct_inv; r.t_max = w.t;
+    NodeRay16 r16;
+    bool fast = node_ray16(r16, scale, p, w.o, w.inv_n);
+    u32 hits;
+#ifdef F16S
+    u32 sx = r.neg[0], sy = r.neg[1], sz = r.neg[2];
+    if (fast) {
+        // The near plane of an axis is its max plane where the ray runs towards -axis.
+        uint4 nx = nd[2 + sx], fx = nd[3 - sx], ny = nd[4 + sy], fy = nd[5 - sy], nz = nd[6 + sz], fz = nd[7 - sz];
+        hits = half_hits16(r16, r, n1.z, nx.x, fx.x, ny.x, fy.x, nz.x, fz.x, nx.y, fx.y, ny.y, fy.y, nz.y, fz.y)
+             | half_hits16(r16, r, n1.w, nx.z, fx.z, ny.z, fy.z, nz.z, fz.z, nx.w, fx.w, ny.w, fy.w, nz.w, fz.w);
+    } else {
+        uint4 lx = nd[2], hx = nd[3], ly = nd[4], hy = nd[5], lz = nd[6], hz = nd[7];
+        const u32 *lo0[3] = {&lx.x, &ly.x, &lz.x}, *hi0[3] = {&hx.x, &hy.x, &hz.x};
+        const u32 *lo1[3] = {&lx.z, &ly.z, &lz.z}, *hi1[3] = {&hx.z, &hy.z, &hz.z};
+        hits = half_hits_s32(r, n1.z, lo0, hi0) | half_hits_s32(r, n1.w, lo1, hi1);
+    }
+#else
+    uint4 n2 = nd[2], n3 = nd[3], n4 = nd[4];
+    if (fast) {
+        hits = half_hits16(r16, r, n1.z, n2.x, n2.z, n3.x, n3.z, n4.x, n4.z, 0, 0, 0, 0, 0, 0)
+             | half_hits16(r16, r, n1.w, n2.y, n2.w, n3.y, n3.w, n4.y, n4.w, 0, 0, 0, 0, 0, 0);
+    } else {
+        hits = half_hits(r, n1.z, n2.x, n2.z, n3.x, n3.z, n4.x, n4.z) | half_hits(r, n1.w, n2.y, n2.w, n3.y, n3.w, n4.y, n4.w);
+    }
+#endif
+    w.gbase = n1.x;
+    w.gbits = (hits & INTERIOR_HITS) | (e >> 24);
+    tri_base = n1.y; tri_bits = hits & TRIANGLE_HITS;
+}
+#endif
 __device__ __forceinline__ bool finish(Walk &w) {
     if (!(w.gbits & INTERIOR_HITS)) {
         if (w.sp == 0) return true;
@@ -295,9 +442,16 @@ __device__ __forceinline__ bool finish(Walk &w) {
 __device__ __forceinline__ bool step(Walk &w, const uint4 *__restrict__ nodes, const uint4 *__restrict__ tris, u32 nnodes, u32 &visits) {
     Pick pk = pick(w);
     if (pk.interior) {
-        u32 k = min(5 * pk.child, 5 * nnodes - 5);
+#ifdef COUNT
+        visits++;
+#endif
+        u32 k = min(NODE_UINT4 * pk.child, NODE_UINT4 * nnodes - NODE_UINT4);
         u32 nbase, nt;
+#if defined(F16) || defined(F16S)
+        visit16(w, nodes + k, nbase, nt);
+#else
         visit(w, nodes[k], nodes[k + 1], nodes[k + 2], nodes[k + 3], nodes[k + 4], nbase, nt);
+#endif
         if (nt) {
             if (w.tbits == 0) { w.tbase = nbase; w.tbits = nt; }
             else if (w.sp < STACK_SIZE) { w.stack[w.sp] = make_uint2(nbase, nt); w.sp++; }
@@ -506,6 +660,25 @@ int main(int argc, char **argv) {
     FILE *pf = fopen((d + "/params.txt").c_str(), "r");
     if (!pf || fscanf(pf, "%d %d %u %f %u %u %u", &width, &height, &ao_rays, &dist, &order, &nn, &nt) != 7) { fprintf(stderr, "error: params\n"); return 1; }
     auto nodes = slurp(d + "/nodes.bin"), tris = slurp(d + "/tris.bin"), points = slurp(d + "/points.bin");
+#ifdef F16S
+    {   // Each node's six byte planes as halves: [n0, n1, lo x, hi x, lo y, hi y, lo z, hi z].
+        std::vector<char> wide((size_t)nn * 128);
+        const u32 *src = (const u32 *)nodes.data();
+        u32 *dst = (u32 *)wide.data();
+        for (size_t i = 0; i < nn; i++) {
+            const u32 *n = src + 20 * i;
+            u32 *o = dst + 32 * i;
+            for (int j = 0; j < 8; j++) o[j] = n[j];
+            const unsigned char *q = (const unsigned char *)(n + 8);  // 6 planes x 8 bytes: lo x, hi x, lo y, ...
+            for (int pl = 0; pl < 6; pl++)
+                for (int c = 0; c < 8; c += 2) {
+                    __half a = __float2half((float)q[8 * pl + c]), b = __float2half((float)q[8 * pl + c + 1]);
+                    o[8 + 4 * pl + c / 2] = (u32)__half_as_ushort(a) | ((u32)__half_as_ushort(b) << 16);
+                }
+        }
+        nodes.swap(wide);
+    }
+#endif
     uint4 *dn, *dt; u32 *dp; float *dout; unsigned long long *dvis;
     CK(cudaMalloc(&dn, nodes.size())); CK(cudaMalloc(&dt, tris.size())); CK(cudaMalloc(&dp, points.size()));
     CK(cudaMalloc(&dout, sizeof(float) * width * height)); CK(cudaMalloc(&dvis, 8));
