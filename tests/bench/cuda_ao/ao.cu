@@ -15,6 +15,11 @@
 //   F16       a node's slab tests two children at a time in packed halves (bytes made
 //             halves by a byte permute), margins that keep them conservative
 //   F16S      the same on nodes that store their planes as halves (128 bytes a node)
+//   F16_MARGIN=N  the halves' margin: A/N of a plane's reach A (default 256, up to 1023)
+//   SPLIT_STACK the stack an array of its own, not a member of the walk's struct (which
+//             then stays in registers instead of local memory)
+//   STACK_TOP the stack's top entry kept in registers (memory only under it)
+// variants.sh runs variants against each other, l2_metrics.sh says what fills the L2.
 // HOST_EMULATION builds it for the CPU (g++ with a shim of the CUDA names, one thread
 // draining each workgroup's pool) to check a variant against the CPU before device time.
 #include <cstdio>
@@ -315,11 +320,33 @@ struct Walk {
     float t;
     bool hit;
     u32 leaves;
+#ifdef SPLIT_STACK
+    uint2 *stack;
+#else
     uint2 stack[STACK_SIZE];
+#endif
+    uint2 top;
+    bool has_top;
     u32 sp, gbase, gbits;
     u32 tbase, tbits;
 };
 
+
+// The stack: with STACK_TOP its top entry lives in registers and only the entries under
+// it in (local) memory, so a push followed by a pop touches no memory.
+#ifdef STACK_TOP
+__device__ __forceinline__ bool st_empty(const Walk &w) { return w.sp == 0 && !w.has_top; }
+__device__ __forceinline__ bool st_room(const Walk &w) { return w.sp < STACK_SIZE; }
+__device__ __forceinline__ void st_push(Walk &w, uint2 e) { if (w.has_top) { w.stack[w.sp] = w.top; w.sp++; } w.top = e; w.has_top = true; }
+__device__ __forceinline__ uint2 st_peek(const Walk &w) { return w.has_top ? w.top : w.stack[w.sp - 1]; }
+__device__ __forceinline__ void st_drop(Walk &w) { if (w.has_top) w.has_top = false; else w.sp--; }
+#else
+__device__ __forceinline__ bool st_empty(const Walk &w) { return w.sp == 0; }
+__device__ __forceinline__ bool st_room(const Walk &w) { return w.sp < STACK_SIZE; }
+__device__ __forceinline__ void st_push(Walk &w, uint2 e) { w.stack[w.sp] = e; w.sp++; }
+__device__ __forceinline__ uint2 st_peek(const Walk &w) { return w.stack[w.sp - 1]; }
+__device__ __forceinline__ void st_drop(Walk &w) { w.sp--; }
+#endif
 __device__ __forceinline__ void restart(Walk &w, const Ray &r, float t_max, u32 leaves, u32 order) {
     w.tst = tester(r);
     w.o = r.o;
@@ -331,6 +358,7 @@ __device__ __forceinline__ void restart(Walk &w, const Ray &r, float t_max, u32 
     w.hit = false;
     w.leaves = leaves;
     w.sp = 0;
+    w.has_top = false;
     w.gbase = 0;
     w.gbits = 1u << 31;
     w.tbits = 0;
@@ -350,7 +378,7 @@ __device__ __forceinline__ Pick pick(Walk &w) {
         u32 slot = (slot_bit - FIRST_INTERIOR_BIT) ^ w.oct_inv;
         u32 relative = __popc(w.gbits & 0xff & ~(0xffffffffu << slot));
         p.child = w.gbase + relative;
-        if ((w.gbits & INTERIOR_HITS) && w.sp < STACK_SIZE) { w.stack[w.sp] = make_uint2(w.gbase, w.gbits); w.sp++; }
+        if ((w.gbits & INTERIOR_HITS) && st_room(w)) st_push(w, make_uint2(w.gbase, w.gbits));
     }
     return p;
 }
@@ -431,8 +459,8 @@ __device__ __forceinline__ void visit16(Walk &w, const uint4 *__restrict__ nd, u
 #endif
 __device__ __forceinline__ bool finish(Walk &w) {
     if (!(w.gbits & INTERIOR_HITS)) {
-        if (w.sp == 0) return true;
-        w.sp--; uint2 en = w.stack[w.sp]; w.gbase = en.x; w.gbits = en.y;
+        if (st_empty(w)) return true;
+        uint2 en = st_peek(w); st_drop(w); w.gbase = en.x; w.gbits = en.y;
     }
     return false;
 }
@@ -454,7 +482,7 @@ __device__ __forceinline__ bool step(Walk &w, const uint4 *__restrict__ nodes, c
 #endif
         if (nt) {
             if (w.tbits == 0) { w.tbase = nbase; w.tbits = nt; }
-            else if (w.sp < STACK_SIZE) { w.stack[w.sp] = make_uint2(nbase, nt); w.sp++; }
+            else if (st_room(w)) st_push(w, make_uint2(nbase, nt));
         }
     }
     if (w.tbits) {
@@ -463,10 +491,10 @@ __device__ __forceinline__ bool step(Walk &w, const uint4 *__restrict__ nodes, c
         if (w.tbase + k != w.leaves && intersect(w.tst, tris, w.tbase + k, w.t)) { w.hit = true; return true; }
     }
     if (!(w.gbits & INTERIOR_HITS)) {
-        if (w.sp == 0) return w.tbits == 0;
-        uint2 en = w.stack[w.sp - 1];
-        if (en.y & INTERIOR_HITS) { w.sp--; w.gbase = en.x; w.gbits = en.y; }
-        else if (w.tbits == 0) { w.sp--; w.tbase = en.x; w.tbits = en.y; }
+        if (st_empty(w)) return w.tbits == 0;
+        uint2 en = st_peek(w);
+        if (en.y & INTERIOR_HITS) { st_drop(w); w.gbase = en.x; w.gbits = en.y; }
+        else if (w.tbits == 0) { st_drop(w); w.tbase = en.x; w.tbits = en.y; }
     }
     return false;
 }
@@ -578,6 +606,10 @@ __device__ __forceinline__ u32 group_trace(const Args &A, u32 *mem) {
     u32 index = atomicAdd(&mem[NEXT], 1);
     if (index >= total) return 0;
     Walk w;
+#ifdef SPLIT_STACK
+    uint2 stack[STACK_SIZE];
+    w.stack = stack;
+#endif
     u32 k, slot;
     div_rem(pdiv, index, k, slot);
     u32 pth = (mem[POINT_THREADS + slot / 4] >> (slot % 4 * 8)) & 0xff;
