@@ -3,7 +3,9 @@
 //! registers, binary size, stack, local and shared memory; lavapipe does not offer the
 //! extension). wgpu creates its pipelines without asking for them, so this builds the same
 //! pipelines (the same SPIR-V, the same descriptor set layouts from `kernels::bindings`)
-//! through ash directly: `cargo run --release --example kernel_stats`.
+//! through ash directly: `cargo run --release --example kernel_stats [NAME...]`, every
+//! entry point, or those whose names contain one of the NAMEs (the driver takes ~100 s
+//! for all of them on the H100). The local memory size it reports is offset by 2^36.
 //!
 //! Neither internal representations nor the pipeline cache gave NVIDIA's machine code (the
 //! 580 driver returns no representation, and its cache holds no ELF image), so this asks
@@ -141,6 +143,7 @@ unsafe fn run() -> Result<(), String> {
         .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None)
         .map_err(|e| format!("shader module: {e}"))?;
 
+    let wanted: Vec<String> = std::env::args().skip(1).collect();
     let mut seen = std::collections::HashSet::new();
     for kernel in Integrator::ALL.into_iter().flat_map(Integrator::kernels) {
         let layout = match kernel {
@@ -148,7 +151,8 @@ unsafe fn run() -> Result<(), String> {
             runner::integrator::Kernel::Restir { .. } => restir_layout,
         };
         for name in entry_points(kernel) {
-            if !seen.insert(name) {
+            let asked = wanted.is_empty() || wanted.iter().any(|w| name.contains(w.as_str()));
+            if !asked || !seen.insert(name) {
                 continue;
             }
             let cname = std::ffi::CString::new(name).expect("entry point names have no NUL");
