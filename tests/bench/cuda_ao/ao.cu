@@ -382,14 +382,22 @@ __device__ __forceinline__ Pick pick(Walk &w) {
     }
     return p;
 }
-__device__ __forceinline__ void visit(Walk &w, const uint4 &n0, const uint4 &n1, const uint4 &n2, const uint4 &n3, const uint4 &n4, u32 &tri_base, u32 &tri_bits) {
-    V3 p = v3(__uint_as_float(n0.x), __uint_as_float(n0.y), __uint_as_float(n0.z));
+// The ray against a node's child planes: its origin p and grid scale from the node's first
+// words (exponent bytes), the slopes and offsets of the slab test.
+__device__ __forceinline__ NodeRay node_ray(const Walk &w, const uint4 &n0, V3 &p, V3 &scale) {
+    p = v3(__uint_as_float(n0.x), __uint_as_float(n0.y), __uint_as_float(n0.z));
     u32 e = n0.w;
-    V3 scale = v3(__uint_as_float((e & 0xff) << 23), __uint_as_float(((e >> 8) & 0xff) << 23), __uint_as_float(((e >> 16) & 0xff) << 23));
+    scale = v3(__uint_as_float((e & 0xff) << 23), __uint_as_float(((e >> 8) & 0xff) << 23), __uint_as_float(((e >> 16) & 0xff) << 23));
     NodeRay r;
     r.slope = scale * w.inv; r.offset = (p - w.o) * w.inv;
     r.neg[0] = w.inv.x < 0.0f; r.neg[1] = w.inv.y < 0.0f; r.neg[2] = w.inv.z < 0.0f;
     r.oct_inv = w.oct_inv; r.t_max = w.t;
+    return r;
+}
+__device__ __forceinline__ void visit(Walk &w, const uint4 &n0, const uint4 &n1, const uint4 &n2, const uint4 &n3, const uint4 &n4, u32 &tri_base, u32 &tri_bits) {
+    V3 p, scale;
+    NodeRay r = node_ray(w, n0, p, scale);
+    u32 e = n0.w;
     u32 hits = half_hits(r, n1.z, n2.x, n2.z, n3.x, n3.z, n4.x, n4.z) | half_hits(r, n1.w, n2.y, n2.w, n3.y, n3.w, n4.y, n4.w);
     w.gbase = n1.x;
     w.gbits = (hits & INTERIOR_HITS) | (e >> 24);
@@ -420,13 +428,9 @@ __device__ __forceinline__ u32 half_hits_s32(const NodeRay &r, u32 meta4, const 
 #endif
 __device__ __forceinline__ void visit16(Walk &w, const uint4 *__restrict__ nd, u32 &tri_base, u32 &tri_bits) {
     uint4 n0 = nd[0], n1 = nd[1];
-    V3 p = v3(__uint_as_float(n0.x), __uint_as_float(n0.y), __uint_as_float(n0.z));
+    V3 p, scale;
+    NodeRay r = node_ray(w, n0, p, scale);
     u32 e = n0.w;
-    V3 scale = v3(__uint_as_float((e & 0xff) << 23), __uint_as_float(((e >> 8) & 0xff) << 23), __uint_as_float(((e >> 16) & 0xff) << 23));
-    NodeRay r;
-    r.slope = scale * w.inv; r.offset = (p - w.o) * w.inv;
-    r.neg[0] = w.inv.x < 0.0f; r.neg[1] = w.inv.y < 0.0f; r.neg[2] = w.inv.z < 0.0f;
-    r.oct_inv = w.oct_inv; r.t_max = w.t;
     NodeRay16 r16;
     bool fast = node_ray16(r16, scale, p, w.o, w.inv_n);
     u32 hits;
