@@ -7,13 +7,20 @@ use common::{closed_box, icosphere};
 use glam::{UVec4, Vec3};
 use kernels::bundle::{cwbvh_occluded, cwbvh_occluded_without_avx, BUNDLE_RAYS};
 use kernels::bvh::{
-    brute_force_any_hit, brute_force_closest_hit, bvh2_traverse, cwbvh_traverse, Cutouts,
+    brute_force_any_hit, brute_force_closest_hit, bvh2_traverse, cwbvh_traverse, Cutouts, WideNode,
 };
 use kernels::intersect::{Hit, Ray};
 use kernels::rng::Rng;
 use kernels::types::{CwBvhNode, CwBvhPlanes, CwBvhSlotNode, Material, Triangle, INVALID};
 use runner::accel::{build_bvh2, build_cwbvh, reorder, BvhQuality};
 use runner::scene::default_scene_path;
+
+/// The closest hit of `ray` over the CWBVH `nodes` read as layout `N`: (triangle, t's bits).
+fn cwbvh_closest<N: WideNode>(triangles: &[UVec4], nodes: &[UVec4], ray: &Ray) -> (u32, u32) {
+    let hit =
+        cwbvh_traverse::<false, N>(triangles, &Cutouts::NONE, nodes, ray, f32::INFINITY, false);
+    (hit.prim, hit.t.to_bits())
+}
 
 fn uniform_dir(rng: &mut Rng) -> Vec3 {
     let z = 1.0 - 2.0 * rng.next_f32();
@@ -152,34 +159,13 @@ fn agree_at_quality(tris: &[Triangle], rays: u32, seed: u32, quality: BvhQuality
         let on_bytes =
             cwbvh_traverse::<false, CwBvhNode>(tc, &Cutouts::NONE, nc, &ray, f32::INFINITY, false);
         check("cwbvh", tris, &ray, &want, &on_bytes, &cw.order);
-        // The decoded planes are the bytes' values exactly: the same walk, the same hit.
-        let on_planes = cwbvh_traverse::<false, CwBvhPlanes>(
-            tc,
-            &Cutouts::NONE,
-            &decoded,
-            &ray,
-            f32::INFINITY,
-            false,
-        );
-        assert_eq!(
-            (on_planes.prim, on_planes.t.to_bits()),
-            (on_bytes.prim, on_bytes.t.to_bits()),
-            "decoded planes {ray:?}"
-        );
-        // The GPU's nodes, with their slots' bits stored: the same walk, the same hit.
-        let on_gpu_nodes = cwbvh_traverse::<false, CwBvhSlotNode>(
-            tc,
-            &Cutouts::NONE,
-            gpu,
-            &ray,
-            f32::INFINITY,
-            false,
-        );
-        assert_eq!(
-            (on_gpu_nodes.prim, on_gpu_nodes.t.to_bits()),
-            (on_bytes.prim, on_bytes.t.to_bits()),
-            "the GPU's nodes {ray:?}"
-        );
+        // The decoded planes (the bytes' values exactly) and the GPU's nodes (with their
+        // slots' bits stored) are the same tree: the same walk, the same hit.
+        let bytes = (on_bytes.prim, on_bytes.t.to_bits());
+        let planes = cwbvh_closest::<CwBvhPlanes>(tc, &decoded, &ray);
+        assert_eq!(planes, bytes, "decoded planes {ray:?}");
+        let gpu_hit = cwbvh_closest::<CwBvhSlotNode>(tc, gpu, &ray);
+        assert_eq!(gpu_hit, bytes, "the GPU's nodes {ray:?}");
         // Any-hit with a limit around the closest hit: blocked iff something is nearer.
         let limit = if want.is_hit() {
             want.t * (0.5 + rng.next_f32())
