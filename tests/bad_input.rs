@@ -541,11 +541,16 @@ fn output_is_complete_or_untouched_and_failures_are_reported() {
         "the old output must be untouched"
     );
     assert!(!frames.exists(), "--out-dir created by a failed run");
-    // No temporary files are left beside the output.
+    // No temporary files are left beside the output. Only this test's output counts: tests
+    // run in parallel in the same folder, and another test's write may be in flight.
     let leftovers: Vec<_> = std::fs::read_dir(dir())
         .unwrap()
         .flatten()
-        .filter(|e| e.file_name().to_string_lossy().contains(".partial-"))
+        .filter(|e| {
+            e.file_name()
+                .to_string_lossy()
+                .starts_with(".keep.png.partial-")
+        })
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
 
