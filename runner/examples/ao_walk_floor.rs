@@ -1,0 +1,144 @@
+//! Diagnostic (not part of the product): how many of the nodes an AO ray visits on the GPU
+//! are forced by where it starts. Every node whose box holds a ray's origin is visited
+//! whatever the ray's direction and length, so those visits are a floor under the walk that
+//! no child order, triangle test or node test can lower; only a shallower tree around the
+//! origins, or a cheaper visit, can. On the CPU, with the GPU's walk over the GPU's nodes
+//! (`cwbvh_ao_walk_nodes`, as the `--ao-order` pilot), for a grid of camera rays and every
+//! fourth of each hit's AO rays, it prints per AO ray:
+//! - the nodes visited (the GPU's AO time follows them: README, "The floor under the AO
+//!   walk");
+//! - the nodes whose boxes hold the origin (the walk to a length of 10^-6 of the AO
+//!   distance), over all rays and over the rays that escape: an escaping ray visits every
+//!   box its segment crosses, these among them, while a blocked one may stop first;
+//! - the nodes visited once the first share s of each ray is skipped (the walk from
+//!   origin + s·distance), for each s in `--skip`: what a per-point list of the triangles
+//!   near the origin, tested apart, could save at most.
+//!
+//! `cargo run --release --example ao_walk_floor -- --scene shell-1m --width 1920 --height
+//! 1080 --bvh-quality high --integrator ao --spp 1 --ao-rays 64`
+use clap::Parser;
+use kernels::bvh::{cwbvh_ao_walk_nodes, cwbvh_traverse, surface_hit};
+use kernels::glam::UVec4;
+use kernels::integrators::ao::{strata, AoRays};
+use kernels::intersect::Ray;
+use kernels::rng::Rng;
+use kernels::types::CwBvhNode;
+use rayon::prelude::*;
+
+/// Camera rays of the grid (columns × rows over the image), and which of a hit's AO rays
+/// are traced (every `EVERY`-th).
+const COLUMNS: u32 = 96;
+const ROWS: u32 = 54;
+const EVERY: usize = 4;
+/// The walk to this share of the AO distance visits the boxes that hold the origin.
+const AT_ORIGIN: f32 = 1e-6;
+
+#[derive(Parser)]
+struct Cli {
+    /// Shares of the AO distance skipped at each ray's start
+    #[arg(long, value_delimiter = ',', default_value = "0.001,0.01,0.1")]
+    skip: Vec<f32>,
+    #[command(flatten)]
+    bench: runner::bench::BenchArgs,
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let args = &cli.bench;
+    let mut scene = match runner::scene::load(&args.scene) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::exit(1);
+        }
+    };
+    let params = match runner::options::frame_params(&args.scene, &args.kernel, &mut scene) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::exit(1);
+        }
+    };
+    let buffers = scene.untraced();
+    let nodes: &[UVec4] = bytemuck::cast_slice(&scene.nodes);
+    let cut = buffers.cutouts();
+    let triangles = buffers.triangles;
+    let rays_strata = strata(&params);
+    let distance = params.ao_distance;
+    let walk = |ray: &Ray, leaves: u32, length: f32| {
+        let end = (leaves, length);
+        cwbvh_ao_walk_nodes::<false, CwBvhNode>(triangles, &cut, nodes, ray, end, params.ao_order)
+            as u64
+    };
+    // Per AO ray: [all, at the origin, escaping rays, their nodes at the origin, skipped
+    // starts...], summed over the grid.
+    const SKIPPED: usize = 4;
+    let columns = SKIPPED + cli.skip.len();
+    let (rays, sums) = (0..ROWS)
+        .into_par_iter()
+        .map(|row| {
+            let mut sums = vec![0u64; columns];
+            let mut rays = 0u64;
+            for column in 0..COLUMNS {
+                let ray = runner::camera::pilot_ray(&params, (column, row), (COLUMNS, ROWS));
+                let hit = cwbvh_traverse::<false, CwBvhNode>(
+                    triangles,
+                    &cut,
+                    nodes,
+                    &ray,
+                    f32::INFINITY,
+                    false,
+                );
+                if !hit.is_hit() {
+                    continue;
+                }
+                let s = surface_hit(&buffers, &ray, &hit);
+                let mut rng = Rng::new(row * COLUMNS + column, 0, 0, params.seed);
+                let point = AoRays::new(s.p, s.prim, s.n, &mut rng);
+                for k in (0..params.ao_rays).step_by(EVERY) {
+                    let ao = point.ray(k, rays_strata);
+                    rays += 1;
+                    sums[0] += walk(&ao, s.prim, distance);
+                    let at_origin = walk(&ao, s.prim, AT_ORIGIN * distance);
+                    sums[1] += at_origin;
+                    let blocked = cwbvh_traverse::<false, CwBvhNode>(
+                        triangles, &cut, nodes, &ao, distance, true,
+                    )
+                    .is_hit();
+                    if !blocked {
+                        sums[2] += 1;
+                        sums[3] += at_origin;
+                    }
+                    for (i, &share) in cli.skip.iter().enumerate() {
+                        let start = Ray::new(ao.origin + ao.dir * (share * distance), ao.dir);
+                        sums[SKIPPED + i] += walk(&start, s.prim, (1.0 - share) * distance);
+                    }
+                }
+            }
+            (rays, sums)
+        })
+        .reduce(
+            || (0, vec![0; columns]),
+            |(r, a), (q, b)| (r + q, a.iter().zip(&b).map(|(x, y)| x + y).collect()),
+        );
+    let per_ray = |n: u64| n as f64 / rays.max(1) as f64;
+    let name = args
+        .scene
+        .scene
+        .as_ref()
+        .map(|p| p.display().to_string())
+        .unwrap_or_default();
+    print!(
+        "{name}: {rays} AO rays ({:.1}% escape), nodes per ray {:.2}, in boxes holding the \
+         origin {:.2} (escaping rays: {:.2}, forced: {:.2} per ray)",
+        100.0 * per_ray(sums[2]),
+        per_ray(sums[0]),
+        per_ray(sums[1]),
+        sums[3] as f64 / sums[2].max(1) as f64,
+        per_ray(sums[3])
+    );
+    for (i, share) in cli.skip.iter().enumerate() {
+        print!(", first {share} skipped {:.2}", per_ray(sums[SKIPPED + i]));
+    }
+    println!();
+}
