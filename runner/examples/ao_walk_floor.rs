@@ -6,7 +6,7 @@
 //! (`cwbvh_ao_walk_nodes`, as the `--ao-order` pilot), for a grid of camera rays and every
 //! fourth of each hit's AO rays, it prints per AO ray:
 //! - the nodes visited (the GPU's AO time follows them: README, "The floor under the AO
-//!   walk");
+//!   walk"), and with `--features traversal-stats` the triangles tested;
 //! - the nodes whose boxes hold the origin (the walk to a length of 10^-6 of the AO
 //!   distance), over all rays and over the rays that escape: an escaping ray visits every
 //!   box its segment crosses, these among them, while a blocked one may stop first;
@@ -70,15 +70,11 @@ fn main() {
         cwbvh_ao_walk_nodes::<false, CwBvhNode>(triangles, &cut, nodes, ray, end, params.ao_order)
             as u64
     };
-    // Per AO ray: [all, at the origin, escaping rays, their nodes at the origin, skipped
-    // starts...], summed over the grid.
-    const SKIPPED: usize = 4;
-    let columns = SKIPPED + cli.skip.len();
-    let (rays, sums) = (0..ROWS)
+    // The AO rays of the grid's hits, with the triangle each leaves.
+    let ao_rays: Vec<(Ray, u32)> = (0..ROWS)
         .into_par_iter()
-        .map(|row| {
-            let mut sums = vec![0u64; columns];
-            let mut rays = 0u64;
+        .flat_map_iter(|row| {
+            let mut out = Vec::new();
             for column in 0..COLUMNS {
                 let ray = runner::camera::pilot_ray(&params, (column, row), (COLUMNS, ROWS));
                 let hit = cwbvh_traverse::<false, CwBvhNode>(
@@ -96,31 +92,47 @@ fn main() {
                 let mut rng = Rng::new(row * COLUMNS + column, 0, 0, params.seed);
                 let point = AoRays::new(s.p, s.prim, s.n, &mut rng);
                 for k in (0..params.ao_rays).step_by(EVERY) {
-                    let ao = point.ray(k, rays_strata);
-                    rays += 1;
-                    sums[0] += walk(&ao, s.prim, distance);
-                    let at_origin = walk(&ao, s.prim, AT_ORIGIN * distance);
-                    sums[1] += at_origin;
-                    let blocked = cwbvh_traverse::<false, CwBvhNode>(
-                        triangles, &cut, nodes, &ao, distance, true,
-                    )
-                    .is_hit();
-                    if !blocked {
-                        sums[2] += 1;
-                        sums[3] += at_origin;
-                    }
-                    for (i, &share) in cli.skip.iter().enumerate() {
-                        let start = Ray::new(ao.origin + ao.dir * (share * distance), ao.dir);
-                        sums[SKIPPED + i] += walk(&start, s.prim, (1.0 - share) * distance);
-                    }
+                    out.push((point.ray(k, rays_strata), s.prim));
                 }
             }
-            (rays, sums)
+            out
         })
-        .reduce(
-            || (0, vec![0; columns]),
-            |(r, a), (q, b)| (r + q, a.iter().zip(&b).map(|(x, y)| x + y).collect()),
-        );
+        .collect();
+    let rays = ao_rays.len() as u64;
+    let sum = |f: &(dyn Fn(&Ray, u32) -> u64 + Sync)| -> u64 {
+        ao_rays.par_iter().map(|(ray, prim)| f(ray, *prim)).sum()
+    };
+    // The walks as the GPU runs them, alone, so that the triangle counter sees only them.
+    #[cfg(feature = "traversal-stats")]
+    let _ = kernels::bvh::stats::take();
+    let visited = sum(&|ray, prim| walk(ray, prim, distance));
+    #[cfg(feature = "traversal-stats")]
+    let tested = Some(kernels::bvh::stats::take().2);
+    #[cfg(not(feature = "traversal-stats"))]
+    let tested: Option<u64> = None;
+    let at_origin = |ray: &Ray, prim| walk(ray, prim, AT_ORIGIN * distance);
+    let in_origin_boxes = sum(&at_origin);
+    let escapes = |ray: &Ray| {
+        !cwbvh_traverse::<false, CwBvhNode>(triangles, &cut, nodes, ray, distance, true).is_hit()
+    };
+    let escaping = sum(&|ray, _| escapes(ray) as u64);
+    let forced = sum(&|ray, prim| {
+        if escapes(ray) {
+            at_origin(ray, prim)
+        } else {
+            0
+        }
+    });
+    let skipped: Vec<u64> = cli
+        .skip
+        .iter()
+        .map(|&share| {
+            sum(&|ray, prim| {
+                let start = Ray::new(ray.origin + ray.dir * (share * distance), ray.dir);
+                walk(&start, prim, (1.0 - share) * distance)
+            })
+        })
+        .collect();
     let per_ray = |n: u64| n as f64 / rays.max(1) as f64;
     let name = args
         .scene
@@ -131,14 +143,17 @@ fn main() {
     print!(
         "{name}: {rays} AO rays ({:.1}% escape), nodes per ray {:.2}, in boxes holding the \
          origin {:.2} (escaping rays: {:.2}, forced: {:.2} per ray)",
-        100.0 * per_ray(sums[2]),
-        per_ray(sums[0]),
-        per_ray(sums[1]),
-        sums[3] as f64 / sums[2].max(1) as f64,
-        per_ray(sums[3])
+        100.0 * per_ray(escaping),
+        per_ray(visited),
+        per_ray(in_origin_boxes),
+        forced as f64 / escaping.max(1) as f64,
+        per_ray(forced)
     );
-    for (i, share) in cli.skip.iter().enumerate() {
-        print!(", first {share} skipped {:.2}", per_ray(sums[SKIPPED + i]));
+    if let Some(tested) = tested {
+        print!(", triangles per ray {:.2}", per_ray(tested));
+    }
+    for (share, n) in cli.skip.iter().zip(&skipped) {
+        print!(", first {share} skipped {:.2}", per_ray(*n));
     }
     println!();
 }
