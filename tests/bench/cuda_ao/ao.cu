@@ -21,6 +21,8 @@
 //   STACK_TOP the stack's top entry kept in registers (memory only under it)
 //   PAD=N     N more values per lane live across the walk (more registers, less
 //             occupancy: PAD=16 takes SPLIT_STACK from 69 to 80, registers.sh)
+//   CAMERA    a closest-hit walk per pixel before the pool, as the Vulkan kernel's camera
+//             ray (what it adds to the registers; the images are unchanged)
 // variants.sh runs variants against each other, l2_metrics.sh says what fills the L2.
 // HOST_EMULATION builds it for the CPU (g++ with a shim of the CUDA names, one thread
 // draining each workgroup's pool) to check a variant against the CPU before device time.
@@ -151,7 +153,7 @@ __device__ __forceinline__ float edge(float px, float py, float qx, float qy) {
     return swap ? -e : e;
 }
 __device__ __forceinline__ float gamma_(int n) { float e = n * (1.1920929e-7f * 0.5f); return e / (1.0f - e); }
-__device__ __forceinline__ bool intersect(const Tester &w, const uint4 *tris, u32 i, float t_max) {
+__device__ __forceinline__ bool intersect_t(const Tester &w, const uint4 *tris, u32 i, float t_max, float &t_hit) {
     uint4 a0 = tris[3 * i], a1 = tris[3 * i + 1], a2 = tris[3 * i + 2];
     V3 p0 = v3(__uint_as_float(a0.x), __uint_as_float(a0.y), __uint_as_float(a0.z));
     V3 p1 = v3(__uint_as_float(a1.x), __uint_as_float(a1.y), __uint_as_float(a1.z));
@@ -192,7 +194,12 @@ __device__ __forceinline__ bool intersect(const Tester &w, const uint4 *tris, u3
     float de = 2.0f * (gamma_(2) * max_xt * max_yt + dy_ * max_xt + dx_ * max_yt);
     float me = fmaxf(fmaxf(fabsf(u), fabsf(v)), fabsf(ww));
     float dt = 3.0f * (gamma_(3) * me * max_zt + de * max_zt + dz_ * me) * fabsf(inv_det);
+    t_hit = t;
     return t > dt;
+}
+__device__ __forceinline__ bool intersect(const Tester &w, const uint4 *tris, u32 i, float t_max) {
+    float t;
+    return intersect_t(w, tris, i, t_max, t);
 }
 
 __device__ __forceinline__ float safe_recip1(float x) {
@@ -540,12 +547,51 @@ __device__ __forceinline__ void group_clear(u32 *mem, u32 thread) {
     if (thread < GROUP / 4) mem[POINT_THREADS + thread] = 0;
     if (thread == 0) { mem[NEXT] = 0; mem[POINTS] = 0; }
 }
+#ifdef CAMERA
+// The closest hit of a ray (a triangle, or INVALID): a camera ray's walk, for CAMERA.
+__device__ __forceinline__ u32 closest_hit(const Args &A, const Ray &r) {
+    Walk w;
+#ifdef SPLIT_STACK
+    uint2 stack[STACK_SIZE];
+    w.stack = stack;
+#endif
+    restart(w, r, 1e30f, INVALID, 0);
+    u32 prim = INVALID;
+    while (true) {
+        Pick pk = pick(w);
+        if (pk.interior) {
+            u32 k = min(NODE_UINT4 * pk.child, NODE_UINT4 * A.nnodes - NODE_UINT4);
+            u32 tri_base, tri_bits;
+            visit(w, A.nodes[k], A.nodes[k + 1], A.nodes[k + 2], A.nodes[k + 3], A.nodes[k + 4], tri_base, tri_bits);
+            while (tri_bits) {
+                u32 j = first_bit_high(tri_bits);
+                tri_bits &= ~(1u << j);
+                float t;
+                if (intersect_t(w.tst, A.tris, tri_base + j, w.t, t)) { w.t = t; prim = tri_base + j; }
+            }
+        }
+        if (finish(w)) return prim;
+    }
+}
+#endif
 __device__ __forceinline__ bool group_point(const Args &A, u32 *mem, u32 thread, int x, int y) {
     if (x >= A.width || y >= A.height) return false;
     const u32 *pt = A.points + 6 * (size_t)(y * A.width + x);
     if (pt[5] == INVALID) return false;
     int base = RAYS + RAYS_WORDS * thread;
     for (int i = 0; i < 6; i++) mem[base + i] = pt[i];
+#ifdef CAMERA
+    // The Vulkan kernel traces each pixel's camera ray in the same kernel as its AO rays:
+    // a closest-hit walk here (down onto the point from a little above it) shows what that
+    // walk's state adds to the kernel's registers (registers.sh). Its answer is only kept
+    // alive, by a store never taken in practice; the point is the dump's.
+    {
+        Ray cr;
+        cr.o = v3(__uint_as_float(pt[0]), __uint_as_float(pt[1]) + 0.25f, __uint_as_float(pt[2]));
+        cr.d = v3(0.0f, -1.0f, 0.0f);
+        if (closest_hit(A, cr) == 0xfffffffeu) *A.visit_sum = 1;
+    }
+#endif
     u32 slot = atomicAdd(&mem[POINTS], 1);
     atomicAdd(&mem[POINT_THREADS + slot / 4], thread << (slot % 4 * 8));
     return true;
