@@ -23,6 +23,8 @@
 //             occupancy: PAD=16 takes SPLIT_STACK from 69 to 80, registers.sh)
 //   CAMERA    a closest-hit walk per pixel before the pool, as the Vulkan kernel's camera
 //             ray (what it adds to the registers; the images are unchanged)
+//   SAMPLES   the phases in a loop over samples (1), its sums live across the walk, as the
+//             Vulkan kernel's (the same; not under HOST_EMULATION, which runs the phases)
 // variants.sh runs variants against each other, l2_metrics.sh says what fills the L2.
 // HOST_EMULATION builds it for the CPU (g++ with a shim of the CUDA names, one thread
 // draining each workgroup's pool) to check a variant against the CPU before device time.
@@ -539,6 +541,7 @@ __device__ __forceinline__ bool step(Walk &w, const uint4 *__restrict__ nodes, c
 struct Args {
     const uint4 *__restrict__ nodes; const uint4 *__restrict__ tris; const u32 *__restrict__ points;
     int width, height; u32 ao_rays; float dist; u32 order, nnodes; float *out; unsigned long long *visit_sum;
+    u32 samples;  // SAMPLES only: the kernel's sample loop (1 at run time)
 };
 
 // Phase 1: clear, then (after a barrier) put the pixel's point into the pool.
@@ -712,6 +715,26 @@ __global__ void __launch_bounds__(GROUP) ao_kernel(Args A) {
     __shared__ u32 mem[GROUP_WORDS];
     u32 thread = threadIdx.y * 16 + threadIdx.x;
     int x = blockIdx.x * 16 + threadIdx.x, y = blockIdx.y * 8 + threadIdx.y;
+#ifdef SAMPLES
+    // The Vulkan kernel's shape: a loop over the pixel's samples around the phases, its
+    // sums and ray count live across the walk (what they add to the registers).
+    float sum = 0.0f;
+    u32 rays = 0;
+    for (u32 s = 0; s < A.samples; s++) {
+        group_clear(mem, thread);
+        __syncthreads();
+        bool hit = group_point(A, mem, thread, x, y);
+        rays += 1 + (hit ? A.ao_rays : 0);
+        __syncthreads();
+        group_trace(A, mem);
+        __syncthreads();
+        if (hit) sum += (float)mem[ESCAPED + thread] / (float)A.ao_rays;
+        __syncthreads();
+    }
+    if (x < A.width && y < A.height) A.out[y * A.width + x] = sum / (float)A.samples;
+    if (rays == 0xfffffffeu) *A.visit_sum = rays;
+    return;
+#endif
     group_clear(mem, thread);
     __syncthreads();
     bool hit = group_point(A, mem, thread, x, y);
@@ -788,7 +811,7 @@ int main(int argc, char **argv) {
     CK(cudaMemset(dvis, 0, 8));
     { u32 z = 0; CK(cudaMemcpyToSymbol(ZERO, &z, 4)); }
     dim3 grid((width + 15) / 16, (height + 7) / 8), block(16, 8);
-    Args A = {dn, dt, dp, width, height, ao_rays, dist, order, nn, dout, dvis};
+    Args A = {dn, dt, dp, width, height, ao_rays, dist, order, nn, dout, dvis, 1};
 #ifdef HOST_EMULATION
 #define LAUNCH emulate(A, grid)
 #else
