@@ -17,13 +17,13 @@
 //! `cargo run --release --example ao_walk_floor -- --scene shell-1m --width 1920 --height
 //! 1080 --bvh-quality high --integrator ao --spp 1 --ao-rays 64`
 use clap::Parser;
-use kernels::bvh::{cwbvh_ao_walk_nodes, cwbvh_traverse, surface_hit};
+use kernels::bvh::{cwbvh_ao_walk_nodes, cwbvh_traverse};
 use kernels::glam::UVec4;
-use kernels::integrators::ao::{strata, AoRays};
+use kernels::integrators::ao::strata;
 use kernels::intersect::Ray;
-use kernels::rng::Rng;
 use kernels::types::CwBvhNode;
 use rayon::prelude::*;
+use runner::ao_order::grid_point;
 
 /// Camera rays of the grid (columns × rows over the image), and which of a hit's AO rays
 /// are traced (every `EVERY`-th).
@@ -45,20 +45,13 @@ struct Cli {
 fn main() {
     let cli = Cli::parse();
     let args = &cli.bench;
-    let mut scene = match runner::scene::load(&args.scene) {
-        Ok(s) => s,
-        Err(e) => {
-            eprintln!("error: {e}");
-            std::process::exit(1);
-        }
+    let fail = |e: runner::error::Error| -> ! {
+        eprintln!("error: {e}");
+        std::process::exit(1)
     };
-    let params = match runner::options::frame_params(&args.scene, &args.kernel, &mut scene) {
-        Ok(p) => p,
-        Err(e) => {
-            eprintln!("error: {e}");
-            std::process::exit(1);
-        }
-    };
+    let mut scene = runner::scene::load(&args.scene).unwrap_or_else(|e| fail(e));
+    let params = runner::options::frame_params(&args.scene, &args.kernel, &mut scene)
+        .unwrap_or_else(|e| fail(e));
     let buffers = scene.untraced();
     let nodes: &[UVec4] = bytemuck::cast_slice(&scene.nodes);
     let cut = buffers.cutouts();
@@ -76,23 +69,13 @@ fn main() {
         .flat_map_iter(|row| {
             let mut out = Vec::new();
             for column in 0..COLUMNS {
-                let ray = runner::camera::pilot_ray(&params, (column, row), (COLUMNS, ROWS));
-                let hit = cwbvh_traverse::<false, CwBvhNode>(
-                    triangles,
-                    &cut,
-                    nodes,
-                    &ray,
-                    f32::INFINITY,
-                    false,
-                );
-                if !hit.is_hit() {
-                    continue;
-                }
-                let s = surface_hit(&buffers, &ray, &hit);
-                let mut rng = Rng::new(row * COLUMNS + column, 0, 0, params.seed);
-                let point = AoRays::new(s.p, s.prim, s.n, &mut rng);
-                for k in (0..params.ao_rays).step_by(EVERY) {
-                    out.push((point.ray(k, rays_strata), s.prim));
+                let cell = (column, row);
+                let grid = (COLUMNS, ROWS);
+                if let Some(point) = grid_point::<false>(&buffers, nodes, &cut, &params, cell, grid)
+                {
+                    for k in (0..params.ao_rays).step_by(EVERY) {
+                        out.push((point.ray(k, rays_strata), point.prim));
+                    }
                 }
             }
             out
@@ -110,19 +93,23 @@ fn main() {
     let tested = Some(kernels::bvh::stats::take().2);
     #[cfg(not(feature = "traversal-stats"))]
     let tested: Option<u64> = None;
-    let at_origin = |ray: &Ray, prim| walk(ray, prim, AT_ORIGIN * distance);
-    let in_origin_boxes = sum(&at_origin);
-    let escapes = |ray: &Ray| {
-        !cwbvh_traverse::<false, CwBvhNode>(triangles, &cut, nodes, ray, distance, true).is_hit()
-    };
-    let escaping = sum(&|ray, _| escapes(ray) as u64);
-    let forced = sum(&|ray, prim| {
-        if escapes(ray) {
-            at_origin(ray, prim)
-        } else {
-            0
-        }
-    });
+    // Per ray, once: the boxes holding its origin, and whether it escapes.
+    let origins: Vec<(u64, bool)> = ao_rays
+        .par_iter()
+        .map(|(ray, prim)| {
+            let blocked =
+                cwbvh_traverse::<false, CwBvhNode>(triangles, &cut, nodes, ray, distance, true)
+                    .is_hit();
+            (walk(ray, *prim, AT_ORIGIN * distance), !blocked)
+        })
+        .collect();
+    let in_origin_boxes: u64 = origins.iter().map(|&(n, _)| n).sum();
+    let escaping = origins.iter().filter(|&&(_, escapes)| escapes).count() as u64;
+    let forced: u64 = origins
+        .iter()
+        .filter(|&&(_, escapes)| escapes)
+        .map(|&(n, _)| n)
+        .sum();
     let skipped: Vec<u64> = cli
         .skip
         .iter()

@@ -141,31 +141,53 @@ fn pilot_point<const PLAIN: bool>(
     column: u32,
     row: u32,
 ) -> PilotCounts {
-    use crate::camera::pilot_ray;
-    use kernels::bvh::{cwbvh_ao_walk_nodes, cwbvh_traverse, surface_hit};
-    use kernels::integrators::ao::{strata, AoRays};
-    use kernels::rng::Rng;
+    use kernels::bvh::cwbvh_ao_walk_nodes;
+    use kernels::integrators::ao::strata;
     use kernels::types::CwBvhNode;
-    let ray = pilot_ray(params, (column, row), (PILOT_COLUMNS, PILOT_ROWS));
-    let triangles = buffers.triangles;
-    let hit = cwbvh_traverse::<PLAIN, CwBvhNode>(triangles, cut, nodes, &ray, f32::INFINITY, false);
+    let grid = (PILOT_COLUMNS, PILOT_ROWS);
     let mut counts = PilotCounts::default();
-    if !hit.is_hit() {
+    let Some(point) = grid_point::<PLAIN>(buffers, nodes, cut, params, (column, row), grid) else {
         return counts;
-    }
-    let s = surface_hit(buffers, &ray, &hit);
-    let mut rng = Rng::new(row * PILOT_COLUMNS + column, 0, 0, params.seed);
-    let point = AoRays::new(s.p, s.prim, s.n, &mut rng);
+    };
     let strata = strata(params);
     let every = (params.ao_rays / PILOT_RAYS).max(1);
     for k in (0..params.ao_rays).step_by(every as usize) {
         let ao = point.ray(k, strata);
-        let end = (s.prim, params.ao_distance);
-        let walk =
-            |order| cwbvh_ao_walk_nodes::<PLAIN, CwBvhNode>(triangles, cut, nodes, &ao, end, order);
+        let end = (point.prim, params.ao_distance);
+        let walk = |order| {
+            cwbvh_ao_walk_nodes::<PLAIN, CwBvhNode>(buffers.triangles, cut, nodes, &ao, end, order)
+        };
         counts.rays += 1;
         counts.near += walk(AO_NEAR_FIRST) as u64;
         counts.far += walk(AO_FAR_FIRST) as u64;
     }
     counts
+}
+
+/// The AO rays of what the camera ray through cell (column, row) of a `grid` (columns ×
+/// rows) over the image sees, or None where it sees nothing: the closest hit through
+/// `nodes` (the GPU's CWBVH), the rest of the scene from `buffers`, and the rays' key from
+/// the cell's own random numbers. The pilots' (and `examples/ao_walk_floor.rs`'s) sample
+/// of a frame's AO rays.
+pub fn grid_point<const PLAIN: bool>(
+    buffers: &kernels::bvh::SceneBuffers,
+    nodes: &[kernels::glam::UVec4],
+    cut: &kernels::bvh::Cutouts,
+    params: &FrameParams,
+    (column, row): (u32, u32),
+    grid: (u32, u32),
+) -> Option<kernels::integrators::ao::AoRays> {
+    use kernels::bvh::{cwbvh_traverse, surface_hit};
+    use kernels::types::CwBvhNode;
+    let ray = crate::camera::pilot_ray(params, (column, row), grid);
+    let triangles = buffers.triangles;
+    let hit = cwbvh_traverse::<PLAIN, CwBvhNode>(triangles, cut, nodes, &ray, f32::INFINITY, false);
+    if !hit.is_hit() {
+        return None;
+    }
+    let s = surface_hit(buffers, &ray, &hit);
+    let mut rng = kernels::rng::Rng::new(row * grid.0 + column, 0, 0, params.seed);
+    Some(kernels::integrators::ao::AoRays::new(
+        s.p, s.prim, s.n, &mut rng,
+    ))
 }
