@@ -19,8 +19,9 @@
 //   SPLIT_STACK the stack an array of its own, not a member of the walk's struct (which
 //             then stays in registers instead of local memory)
 //   STACK_TOP the stack's top entry kept in registers (memory only under it)
-//   PAD=N     N more values per lane live across the walk (more registers, less
-//             occupancy: PAD=16 takes SPLIT_STACK from 69 to 80, registers.sh)
+//   PAD=N     N more values per lane live across the walk: PAD=16 takes SPLIT_STACK from
+//             69 to 80 registers under registers.sh, but nvcc 13 for sm_90 keeps 64 and
+//             spills them (README, "Occupancy measured, and not the gap")
 //   CAMERA    a closest-hit walk per pixel before the pool, as the Vulkan kernel's camera
 //             ray (what it adds to the registers; the images are unchanged)
 //   SAMPLES   the phases in a loop over samples (1), its sums live across the walk, as the
