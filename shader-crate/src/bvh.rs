@@ -291,9 +291,13 @@ impl<'a> SceneBuffers<'a> {
             if index == INVALID {
                 break;
             }
-            if !self.any_hit::<PLAIN>(&pool.ray(index).0, t_max) {
-                pool.escaped(index);
+            // A CWBVH without nodes has no triangles: nothing blocks. (Tracing anyway put a
+            // third inlined traversal and its stack, never run, into the AO kernels.)
+            #[cfg(any(feature = "traversal-bvh2", feature = "traversal-brute-force"))]
+            if self.any_hit::<PLAIN>(&pool.ray(index).0, t_max) {
+                continue;
             }
+            pool.escaped(index);
         }
     }
 
