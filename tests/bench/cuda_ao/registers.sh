@@ -3,9 +3,10 @@
 # clang compiles ao.cu to PTX for sm_80, and NVIDIA's ptxas assembles that PTX for sm_90 and
 # reports what it used. The numbers are ptxas's on clang's PTX, not on nvcc's: compare
 # variants with each other, not with run.sh's; even the differences need not carry over
-# (PAD=16: 69 → 80 here, while nvcc 13's build on the device keeps 64 and spills). The tools come from pip wheels: ptxas from
-# CUDA 12.9's, and the headers from CUDA 11.8's (clang 14 supports CUDA up to 11.5, and
-# reads 11.8's headers with a warning; 12's no longer declare what its wrapper includes).
+# (PAD=16: 69 → 80 here, while nvcc 13's build on the device keeps 64 and spills). The
+# tools come from pip wheels: ptxas from CUDA 12.9's, and the headers from CUDA 11.8's
+# (clang 14 supports CUDA up to 11.5, and reads 11.8's headers with a warning; 12's no
+# longer declare what its wrapper includes).
 # Needs clang (apt-get install clang-14) and pip. A variant is macros joined by +, as in
 # variants.sh. With SASS=dir, each variant's machine code is written there as well
 # (nvdisasm, from the nvidia-cuda-nvdisasm wheel).
