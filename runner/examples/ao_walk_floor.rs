@@ -5,8 +5,8 @@
 //! origins, or a cheaper visit, can. On the CPU, with the GPU's walk over the GPU's nodes
 //! (`cwbvh_ao_walk_nodes`, as the `--ao-order` pilot), for a grid of camera rays and every
 //! fourth of each hit's AO rays, it prints per AO ray:
-//! - the nodes visited (the GPU's AO time follows them: README, "The floor under the AO
-//!   walk"), and with `--features traversal-stats` the triangles tested;
+//! - the nodes visited (the GPU's AO time follows them: docs/PERFORMANCE.md, "The floor
+//!   under the AO walk"), and with `--features traversal-stats` the triangles tested;
 //! - the nodes whose boxes hold the origin (the walk to a length of 10^-6 of the AO
 //!   distance), over all rays and over the rays that escape: an escaping ray visits every
 //!   box its segment crosses, these among them, while a blocked one may stop first;

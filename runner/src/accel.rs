@@ -67,7 +67,7 @@ pub enum BvhQuality {
     /// reinsertion: rays visit up to 8–12% fewer nodes where triangles are long or thin
     /// (AO on the H100 up to 13% faster), for 1–3× the build time of PLOC with full
     /// reinsertion and 1.5× its memory; for long renders of large scenes
-    // (Against PLOC with full reinsertion, `high` before it: README, "SBVH". The BVH2
+    // (Against PLOC with full reinsertion, `high` before it: docs/PERFORMANCE.md, "SBVH". The BVH2
     // traversal feature builds PLOC at every quality.)
     High,
 }
@@ -110,7 +110,7 @@ pub fn quality() -> BvhQuality {
 }
 
 /// Extra boxes pre-splitting may add, as a share of the triangles (`--bvh-splits`;
-/// `presplit`), unless told otherwise: none. Measured on the H200 (README, "Benchmark
+/// `presplit`), unless told otherwise: none. Measured on the H200 (docs/PERFORMANCE.md, "Benchmark
 /// suite"), Karras & Aila's 0.3 made AO on four of the five suite scenes 1–17% slower and
 /// Cornell MIS 21% (fewer triangle tests, more node visits), rocks-1m AO and city-1m pt
 /// 3–4% faster: a lever for scenes of large triangles, not a default.

@@ -6,8 +6,8 @@
 //! hold a blocker: back to front saves them 13% of their nodes. Rays between grass blades
 //! are blocked by the nearest blade: back to front costs them 5%.
 //!
-//! The GPU's time follows the nodes it visits (README, "Benchmark suite": with the order
-//! reversed for every scene, H200, shell-1m 96.0 → 83.0 ms and grass-1m 44.6 → 47.4, the
+//! The GPU's time follows the nodes it visits (docs/PERFORMANCE.md, "Benchmark suite": with
+//! the order reversed for every scene, H200, shell-1m 96.0 → 83.0 ms and grass-1m 44.6 → 47.4, the
 //! CPU's node counts −13% and +5%), so `auto` (the default) counts them: a pilot traces a
 //! grid of camera rays and some of each hit's AO rays on the host, with the kernels' own
 //! walk over the GPU's own nodes, in both orders, and takes the one that visits fewer

@@ -107,7 +107,7 @@ pub fn expects_cpu(choice: BackendChoice) -> bool {
 pub struct AdapterFit {
     pub name: String,
     /// A software rasteriser (lavapipe, SwiftShader): it runs our SPIR-V, but slower than
-    /// the CPU backend runs the same kernels (see README, "Backends").
+    /// the CPU backend runs the same kernels (README, "Using the renderer": `--backend auto`).
     pub software: bool,
     /// Whether the scene and image fit the adapter's limits, and if not, why.
     pub fits: Result<()>,

@@ -6,12 +6,12 @@
 //! triangle test `TRIANGLE_COST`, each weighed by its box's half area. obvhs's conversion
 //! runs the same programme with a triangle at 0.3 of a node visit. On the H100 a triangle
 //! test costs about 2.2 node visits (the AO walk ran its node visits at ~40 G/s with its
-//! triangle tests left out and ~23 G/s with them; README, "The GPU's time"), so at 0.3
+//! triangle tests left out and ~23 G/s with them; docs/PERFORMANCE.md, "The GPU's time"), so at 0.3
 //! the leaves hold too many triangles: leaves of one triangle forced everywhere made the
 //! 1M suite's AO 1–9% faster, but the Cornell box's 38% slower. At 2.2 the programme
 //! keeps leaves of up to 3 where they pay (the Cornell box gets obvhs's tree) and single
 //! triangles where they do not, and fills nodes better than leaves of one everywhere
-//! would (README, "The wide nodes at the GPU's costs"). obvhs's encoder (child order,
+//! would (docs/PERFORMANCE.md, "The wide nodes at the GPU's costs"). obvhs's encoder (child order,
 //! quantised boxes, meta bytes) builds the nodes from these decisions. The CPU backend
 //! has prices of its own (`CPU_TRIANGLE_COST`).
 use obvhs::bvh2::Bvh2;
@@ -23,7 +23,7 @@ use std::sync::atomic::{AtomicU32, Ordering};
 pub const GPU_TRIANGLE_COST: f32 = 2.2;
 /// ... on the CPU backend, whose bundles test a triangle against up to 64 rays at once:
 /// obvhs's 0.3 (leaves of up to 3 almost everywhere) made its AO 4–10% faster than 2.2
-/// on rocks-1m, shell-1m and spheres-1m (README, "The CPU backend against Embree").
+/// on rocks-1m, shell-1m and spheres-1m (docs/PERFORMANCE.md, "The CPU backend against Embree").
 pub const CPU_TRIANGLE_COST: f32 = 0.3;
 
 /// The price the trees this process builds use (`set_for_cpu`), as f32 bits: like the

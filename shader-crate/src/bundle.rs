@@ -1,7 +1,7 @@
 //! Occlusion of a bundle of rays from one point, traced together (the CPU backend's
 //! ambient occlusion). A point's AO rays all start where the point is, so they visit the
-//! same nodes around it (half or more of their node visits, README "Benchmark suite") and
-//! part of the way out. Walked one at a time, each ray's node test waits on the load of
+//! same nodes around it (half or more of their node visits, docs/PERFORMANCE.md "Benchmark
+//! suite") and part of the way out. Walked one at a time, each ray's node test waits on the load of
 //! the node it chose before; walked together, a node is read once for all the rays of the
 //! bundle that enter it, while the next one is fetched, and those rays' tests of it are
 //! independent of each other, which the CPU runs side by side. Once only one ray of the

@@ -60,8 +60,8 @@ pub const CWBVH_STACK: usize = 24;
 /// A ray's start (taking it from the pool, making its direction, the walk's set-up) costs
 /// the warp as much whether one lane or twelve run it, the others waiting: started one lane
 /// at a time, nearly every step of the walk paid for one. Aila & Laine 2009's dynamic fetch;
-/// 8, 10, 12, 14 and 16 measured (README, "Benchmark suite"). On the CPU a thread is its
-/// own warp.
+/// 8, 10, 12, 14 and 16 measured (docs/PERFORMANCE.md, "Benchmark suite"). On the CPU a
+/// thread is its own warp.
 pub const START_TOGETHER: u32 = 12;
 
 /// The pooled AO walk tests one triangle a step, alongside that step's node (`CwbvhWalk::
@@ -70,9 +70,9 @@ pub const START_TOGETHER: u32 = 12;
 /// port of this walk (shell-1m, H100) found the triangle loop running with 2.6 of 32 lanes
 /// on average and issuing 35% of the warp instructions; one a step: shell-1m −10.2%,
 /// spheres-1m −7.4%, grass-1m −3.9%, rocks-1m −3.6%, city-1m +1.7% (H100, one round;
-/// README, "Benchmark suite").
+/// docs/PERFORMANCE.md, "Benchmark suite").
 /// Closest-hit and shadow walks keep a node's triangles in its step (there, one a step
-/// was slower: README, "A leaf's triangles spread over the walk's steps").
+/// was slower: docs/PERFORMANCE.md, "A leaf's triangles spread over the walk's steps").
 const AO_ONE_TRIANGLE: bool = true;
 
 /// Shadow rays stop this fraction of the way to the light's (offset) point, so that the
@@ -957,7 +957,7 @@ fn interior_in_priority_order(mask: u32, oct_inv: u32) -> u32 {
 /// loads more than for the conversions. The CPU pays for the conversions: AO on the CPU
 /// backend 16–21% faster with decoded planes, 27–41% with their children tested four at a
 /// time and the node read inlined (rocks-1m, spheres-1m, city-1m, grass-1m; 2-core box;
-/// README, "The CPU backend against Embree"). The host
+/// docs/PERFORMANCE.md, "The CPU backend against Embree"). The host
 /// builds each backend's buffer (`runner::accel::host_nodes`, `runner::accel::gpu_node`);
 /// the traversal is the same
 /// code over either ([`WideNode`]), and both give the same t to the bit.
@@ -987,8 +987,8 @@ pub fn cwbvh_traverse<const PLAIN: bool, N: WideNode>(
 
 /// Nodes that the pooled AO walk (`SceneBuffers::trace_pool`) visits for `ray`, leaving
 /// triangle `leaves`, to `t_max` with children in `order`: what the GPU's time follows
-/// (README, "Benchmark suite"); the host's pilot (`runner::ao_order`) counts it over
-/// the GPU's own nodes.
+/// (docs/PERFORMANCE.md, "Benchmark suite"); the host's pilot (`runner::ao_order`) counts it
+/// over the GPU's own nodes.
 pub fn cwbvh_ao_walk_nodes<const PLAIN: bool, N: WideNode>(
     triangles: &[UVec4],
     cutouts: &Cutouts,

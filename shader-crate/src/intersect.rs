@@ -157,7 +157,7 @@ pub fn intersect_watertight(
 /// computed from a buffer's length instead was folded by the NVIDIA driver: rays leaked
 /// again.) Before, the endpoints were put in one canonical order, with compares and
 /// selects; the XOR made every kernel 3–9% faster and leaks nothing in 796 M rays on the
-/// H100 (README, "Benchmark suite").
+/// H100 (docs/PERFORMANCE.md, "Benchmark suite").
 #[inline(always)]
 fn edge_function(px: f32, py: f32, qx: f32, qy: f32, zero: u32) -> f32 {
     let rounded = |p: f32| f32::from_bits(p.to_bits() ^ zero);

@@ -66,7 +66,7 @@ use glsl_binary;
 /// rounded once, the reciprocal within the 2.5 ulp that Vulkan's division promises). It
 /// costs a multiply where an integer division is a long instruction sequence on the GPU:
 /// the AO pool's and strata's divisions per ray this way made AO 1.0–1.7% faster on the
-/// H200 (README, "Benchmark suite"). Larger dividends divide as integers.
+/// H200 (docs/PERFORMANCE.md, "Benchmark suite"). Larger dividends divide as integers.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct Divisor {
     d: u32,

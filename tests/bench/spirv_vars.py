@@ -1,6 +1,6 @@
 # The sizeable Function-storage variables of entry points in our SPIR-V, with their types:
 # what a driver may keep in local memory, e.g. which traversal stacks a kernel holds (the
-# README, "The walk's state in local memory"; compare `kernel_stats`' local memory).
+# docs/PERFORMANCE.md, "The walk's state in local memory"; compare `kernel_stats`' local memory).
 # usage: python3 tests/bench/spirv_vars.py target/spirv-builder/.../kernels.spv \
 #          entry::ao_plain_main entry::nee_diffuse_main
 import struct

@@ -21,7 +21,7 @@ const _: () =
     assert!((AO_WORKGROUP.0 * AO_WORKGROUP.1) as usize == kernels::integrators::ao::GROUP_THREADS);
 /// Workgroup size of ReSTIR's passes (`threads(16, 8)`): four warps of 16×2 pixels. On the
 /// H100, 1–3% faster than 8×8 for every ReSTIR scene measured, while NEE and pt on the 1M
-/// suite scenes were 2–4% slower at 16×8 (README, "Workgroup shape").
+/// suite scenes were 2–4% slower at 16×8 (docs/PERFORMANCE.md, "Workgroup shape").
 pub const RESTIR_WORKGROUP: (u32, u32) = (16, 8);
 // The initial pass's light tiles are meant to be its warps (32 invocations, whole rows of
 // the workgroup): if the workgroup changes shape, the tiles must follow it.

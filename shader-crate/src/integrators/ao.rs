@@ -166,7 +166,7 @@ pub const GROUP_THREADS: usize = 128;
 /// number of points with rays, those points' threads in the order they came (a byte each),
 /// each thread's count of escaped rays, and each thread's `AoRays` (origin, normal word,
 /// key, triangle). Kept small: the workgroup's memory comes out of the SM's L1, which the walk's
-/// node reads live on (README, "Benchmark suite").
+/// node reads live on (docs/PERFORMANCE.md, "Benchmark suite").
 const NEXT: usize = 0;
 const POINTS: usize = 1;
 const POINT_THREADS: usize = 2;
@@ -227,7 +227,8 @@ impl<M: GroupMemory> RayPool for GroupPool<'_, M> {
         let base = RAYS + RAYS_WORDS * thread;
         let f = |i: usize| f32::from_bits(self.memory.load(base + i));
         // The point's frame is made again per ray rather than kept in workgroup memory:
-        // six more words a point made AO 0.3–1% slower (H200; README, "Benchmark suite").
+        // six more words a point made AO 0.3–1% slower (H200; docs/PERFORMANCE.md,
+        // "Benchmark suite").
         let origin = Vec3::new(f(0), f(1), f(2));
         let (normal, key) = (self.memory.load(base + 3), self.memory.load(base + 4));
         let prim = self.memory.load(base + 5);

@@ -5,7 +5,7 @@
 // below, and on the H100 all but a few pixels by one ray in 64). It reads what
 // `runner/examples/dump_ao.rs` writes; `run.sh` beside it builds and runs everything on the
 // device machine. The walk changes only where the Rust kernel does; a variant macro is a
-// lever tried here first (README, "Benchmark suite": what each measured):
+// lever tried here first (docs/PERFORMANCE.md, "Benchmark suite": what each measured):
 //   NO_TRI    no triangle tests          COUNT     nodes per ray
 //   NO_CANON  edge products rounded, no canonical order (CUDA's __fmul_rn)
 //   EDGE_XOR  edge products apart by an XOR with a run-time zero
@@ -21,7 +21,7 @@
 //   STACK_TOP the stack's top entry kept in registers (memory only under it)
 //   PAD=N     N more values per lane live across the walk: PAD=16 takes SPLIT_STACK from
 //             69 to 80 registers under registers.sh, but nvcc 13 for sm_90 keeps 64 and
-//             spills them (README, "Occupancy measured, and not the gap")
+//             spills them (docs/PERFORMANCE.md, "Occupancy measured, and not the gap")
 //   CAMERA    a closest-hit walk per pixel before the pool, as the Vulkan kernel's camera
 //             ray (what it adds to the registers; the images are unchanged)
 //   SAMPLES   the phases in a loop over samples (1), its sums live across the walk, as the
