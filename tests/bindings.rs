@@ -5,6 +5,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use kernels::bindings::{Binding, PRESENT, RESTIR, SCENE};
+use runner::gpu::entry_points;
 use runner::integrator::{Integrator, Kernel};
 use runner::restir::RestirPass;
 
@@ -122,9 +123,11 @@ fn every_entry_point_the_host_dispatches_exists() {
         .iter()
         .flat_map(|p| [p.entry_point(false), p.entry_point(true)])
         .collect();
+    // Image kernels in either workgroup size (AO's 16×56 on NVIDIA adapters).
     for kernel in Integrator::ALL.into_iter().flat_map(Integrator::kernels) {
-        if let Kernel::Image { entry_point, .. } = kernel {
-            names.push(entry_point);
+        if let Kernel::Image { .. } = kernel {
+            names.extend(entry_points(kernel, false));
+            names.extend(entry_points(kernel, true));
         }
     }
     for name in names {
@@ -136,11 +139,16 @@ fn every_entry_point_the_host_dispatches_exists() {
     }
     // ReSTIR passes bind set 1; image kernels only set 0 (their pipeline layout has one set).
     for kernel in Integrator::ALL.into_iter().flat_map(Integrator::kernels) {
-        if let Kernel::Image { entry_point, .. } = kernel {
-            assert!(
-                module[entry_point].iter().all(|b| b.0 == 0),
-                "{entry_point} binds a set the image pipeline layout does not have"
-            );
+        if let Kernel::Image { .. } = kernel {
+            for entry_point in [false, true]
+                .into_iter()
+                .flat_map(|w| entry_points(kernel, w))
+            {
+                assert!(
+                    module[entry_point].iter().all(|b| b.0 == 0),
+                    "{entry_point} binds a set the image pipeline layout does not have"
+                );
+            }
         }
     }
 }

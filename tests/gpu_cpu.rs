@@ -352,40 +352,47 @@ impl kernels::integrators::ao::GroupMemory for SharedWords<'_> {
     }
 }
 
+use kernels::integrators::ao::{SMALL_GROUP, WIDE_GROUP};
+
 #[test]
 fn ao_workgroup_pool_matches_per_pixel() {
     // The GPU's AO kernel: a workgroup's threads share their pixels' rays. Run it with as
-    // many threads on the CPU, in rows of 8 pixels, over a tile that sticks out of the image (threads without a pixel) and
-    // over one inside it, and hold every pixel to the per-pixel function's result: the
-    // same rays are traced whoever traces them, so the sums must be identical.
-    // Either walk order (`runner::ao_order`): the same answer for every ray.
+    // many threads on the CPU, in the GPU's rows of 16 pixels, over a tile that sticks out
+    // of the image (threads without a pixel) and over one inside it, and hold every pixel
+    // to the per-pixel function's result: the same rays are traced whoever traces them, so
+    // the sums must be identical. Either walk order (`runner::ao_order`): the same answer
+    // for every ray.
     let orders = [kernels::types::AO_NEAR_FIRST, kernels::types::AO_FAR_FIRST];
-    let hits = pool_matches_per_pixel(
-        None,
-        (13, 11),
-        (3, 5),
-        &[(0, 0, orders[0]), (8, 8, orders[0]), (0, 0, orders[1])],
-    );
+    let tiles = [(0, 0, orders[0]), (8, 8, orders[0]), (0, 0, orders[1])];
+    let hits = pool_matches_per_pixel::<SMALL_GROUP>(None, (13, 11), (3, 5), &tiles);
     assert!(
         hits > 10,
         "only {hits} pixels with AO rays: the test tests little"
     );
     // A full pool: every thread's camera ray hits (from inside a closed sphere), each point
     // with the renderer's default 64 rays, 8,192 rays for the workgroup.
-    let hits = pool_matches_per_pixel(Some("shell-20k"), (16, 16), (1, 64), &[(0, 0, orders[1])]);
+    let tile = [(0, 0, orders[1])];
+    let hits = pool_matches_per_pixel::<SMALL_GROUP>(Some("shell-20k"), (16, 16), (1, 64), &tile);
     assert_eq!(hits, 128, "every thread of the tile should hold a point");
+    // The 16×56 workgroup of NVIDIA adapters, full: 896 points in one pool, whose point
+    // list keeps each point's thread in 16 bits.
+    let hits = pool_matches_per_pixel::<WIDE_GROUP>(Some("shell-20k"), (16, 64), (1, 8), &tile);
+    assert_eq!(
+        hits, WIDE_GROUP as u32,
+        "every thread of the tile should hold a point"
+    );
 }
 
 /// `ao_workgroup_pool_matches_per_pixel` on `scene` (None: the Cornell box) of `(w, h)`
-/// pixels, `(spp, ao_rays)`, over the tiles of 128 threads, 8 pixels wide and 16 high, at
-/// `(x, y, walk order)`: the pixels with AO rays.
-fn pool_matches_per_pixel(
+/// pixels, `(spp, ao_rays)`, over tiles of a workgroup of `G` threads in rows of
+/// `GROUP_WIDTH`, at `(x, y, walk order)`: the pixels with AO rays.
+fn pool_matches_per_pixel<const G: usize>(
     scene: Option<&str>,
     (w, h): (u32, u32),
     (spp, ao_rays): (u32, u32),
     tiles: &[(u32, u32, u32)],
 ) -> u32 {
-    use kernels::integrators::ao::{render_group_pixel, render_pixel, GROUP_THREADS, GROUP_WORDS};
+    use kernels::integrators::ao::{group_words, render_group_pixel, render_pixel, GROUP_WIDTH};
     let mut sa = scene_args(w, h);
     sa.scene = scene.map(Into::into);
     let mut ka = kernel_args(Integrator::Ao, spp);
@@ -397,17 +404,17 @@ fn pool_matches_per_pixel(
     let mut hits = 0;
     for &(tx, ty, order) in tiles {
         params.ao_order = order;
-        let words: Vec<_> = (0..GROUP_WORDS).map(|_| Default::default()).collect();
-        let barrier = std::sync::Barrier::new(GROUP_THREADS);
+        let words: Vec<_> = (0..group_words(G)).map(|_| Default::default()).collect();
+        let barrier = std::sync::Barrier::new(G);
         let results: Vec<_> = std::thread::scope(|s| {
-            let threads: Vec<_> = (0..GROUP_THREADS)
+            let threads: Vec<_> = (0..G)
                 .map(|t| {
                     let (words, barrier, buffers, params) = (&words, &barrier, &buffers, &params);
                     s.spawn(move || {
-                        let (x, y) = (tx + t as u32 % 8, ty + t as u32 / 8);
+                        let (x, y) = (tx + (t % GROUP_WIDTH) as u32, ty + (t / GROUP_WIDTH) as u32);
                         let inside = x < w && y < h;
                         let mut memory = SharedWords { words, barrier };
-                        let r = render_group_pixel::<false, _>(
+                        let r = render_group_pixel::<false, G, _>(
                             buffers,
                             params,
                             &mut memory,

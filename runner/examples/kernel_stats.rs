@@ -150,7 +150,11 @@ unsafe fn run() -> Result<(), String> {
             runner::integrator::Kernel::Image { .. } => image_layout,
             runner::integrator::Kernel::Restir { .. } => restir_layout,
         };
-        for name in entry_points(kernel) {
+        // Both workgroup sizes of AO (`runner::gpu::wide_ao`).
+        for name in [false, true]
+            .into_iter()
+            .flat_map(|wide| entry_points(kernel, wide))
+        {
             let asked = wanted.is_empty() || wanted.iter().any(|w| name.contains(w.as_str()));
             if !asked || !seen.insert(name) {
                 continue;

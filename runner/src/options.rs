@@ -17,8 +17,15 @@ use crate::scene::Scene;
 /// in one GPU buffer.
 pub const MAX_IMAGE_SIDE: u32 = 32_768;
 pub const MAX_IMAGE_PIXELS: u64 = 1 << 27;
-/// Most samples per pixel (and AO rays per sample): keeps sample indices far from overflow.
+/// Most samples per pixel: keeps sample indices far from overflow.
 pub const MAX_SPP: u32 = 1 << 24;
+/// Most AO rays per camera sample: a GPU workgroup's pool counts its points' rays in 32
+/// bits (and one failed take a thread), for up to `kernels::integrators::ao::WIDE_GROUP`
+/// (896) points.
+pub const MAX_AO_RAYS: u32 = 1 << 22;
+const _: () = assert!(
+    kernels::integrators::ao::WIDE_GROUP as u64 * (MAX_AO_RAYS as u64 + 1) <= u32::MAX as u64
+);
 /// Most RIS candidates per pixel: 65,536 is already ~100× past where more stop helping,
 /// and every one costs a light sample in every pixel of every frame.
 pub const MAX_CANDIDATES: u32 = 1 << 16;
@@ -245,8 +252,8 @@ pub fn frame_params(
     if kernel.spp == 0 || kernel.spp > MAX_SPP {
         bail!("--spp must be between 1 and {MAX_SPP}, got {}", kernel.spp);
     }
-    if kernel.ao_rays > MAX_SPP {
-        bail!("--ao-rays must be at most {MAX_SPP}");
+    if kernel.ao_rays > MAX_AO_RAYS {
+        bail!("--ao-rays must be at most {MAX_AO_RAYS}");
     }
     if kernel.ao_rays == 0 {
         bail!("--ao-rays must be at least 1");

@@ -36,7 +36,7 @@ macro_rules! kernel {
     };
     (threads($wx:literal, $wy:literal), $name:ident, |$scene:ident, $params:ident, $x:ident, $y:ident, $i:ident, $rays:ident, $accum:ident, group: $memory:ident, $thread:ident, $inside:ident| $body:block) => {
         kernel!(@fn ($wx, $wy), $name, $scene, $params, $x, $y, $i, $rays, $accum, $inside, {}, [
-            #[spirv(workgroup)] shared: &mut [u32; ao::GROUP_WORDS],
+            #[spirv(workgroup)] shared: &mut [u32; ao::group_words($wx * $wy)],
             #[spirv(local_invocation_index)] local: u32,
         ], {
             let $memory = shared;
@@ -110,7 +110,7 @@ macro_rules! image_kernel {
 /// An AO workgroup's pool (`ao::GroupMemory`) in workgroup memory. (Implemented for the
 /// array itself: a struct holding the pointer would be a variable of pointer type, which
 /// SPIR-V's logical addressing forbids.)
-impl ao::GroupMemory for [u32; ao::GROUP_WORDS] {
+impl<const N: usize> ao::GroupMemory for [u32; N] {
     fn load(&self, word: usize) -> u32 {
         self[word]
     }
@@ -135,18 +135,21 @@ impl ao::GroupMemory for [u32; ao::GROUP_WORDS] {
     }
 }
 
-const _: () = assert!(ao::GROUP_THREADS == 16 * 8, "the AO kernels' workgroup");
+const _: () = assert!(
+    ao::GROUP_WIDTH == 16 && ao::SMALL_GROUP == 16 * 8 && ao::WIDE_GROUP == 16 * 56,
+    "the AO kernels' workgroups"
+);
 
-/// Declares an AO kernel: every thread of the 16×8 workgroup (the host's
-/// `gpu::pipelines::AO_WORKGROUP`), inside the image or not,
+/// Declares an AO kernel: every thread of the `$wx`×`$wy` workgroup (the host's
+/// `gpu::pipelines::ao_workgroup`), inside the image or not,
 /// runs `ao::render_group_pixel`, as they share one pool of rays.
 macro_rules! ao_kernel {
-    ($name:ident, $plain:literal) => {
+    ($name:ident, $plain:literal, $wx:literal, $wy:literal) => {
         kernel!(
-            threads(16, 8),
+            threads($wx, $wy),
             $name,
             |scene, params, x, y, i, rays, accum, group: memory, thread, inside| {
-                let r = ao::render_group_pixel::<$plain, _>(
+                let r = ao::render_group_pixel::<$plain, { $wx * $wy }, _>(
                     &scene, params, memory, thread, x, y, inside,
                 );
                 if inside {
@@ -158,13 +161,15 @@ macro_rules! ao_kernel {
     };
 }
 
-ao_kernel!(ao_main, false);
+ao_kernel!(ao_main, false, 16, 8);
+ao_kernel!(ao_wide_main, false, 16, 56);
 image_kernel!(pt_main, path::pt_pixel::<false>);
 image_kernel!(nee_main, path::nee_pixel::<false>);
 image_kernel!(mis_main, path::mis_pixel::<false>);
 image_kernel!(ris_main, path::ris_pixel::<false>);
 // For plain scenes: all Lambertian, untextured, no cut-outs (see `path::trace_path`).
-ao_kernel!(ao_plain_main, true);
+ao_kernel!(ao_plain_main, true, 16, 8);
+ao_kernel!(ao_plain_wide_main, true, 16, 56);
 image_kernel!(pt_diffuse_main, path::pt_pixel::<true>);
 image_kernel!(nee_diffuse_main, path::nee_pixel::<true>);
 image_kernel!(mis_diffuse_main, path::mis_pixel::<true>);

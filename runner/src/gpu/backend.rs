@@ -12,7 +12,7 @@ use wgpu::util::DeviceExt;
 
 use super::bindings::bind_group;
 use super::device::GpuContext;
-use super::pipelines::{workgroups, IMAGE_WORKGROUP, RESTIR_WORKGROUP};
+use super::pipelines::{IMAGE_WORKGROUP, RESTIR_WORKGROUP};
 use super::timestamps::{Timestamps, MAX_TIMED_PASSES};
 use crate::backend::Backend;
 use crate::bail;
@@ -289,7 +289,7 @@ impl GpuBackend {
         &self,
         encoder: &mut wgpu::CommandEncoder,
         kernel: Kernel,
-        entry: &str,
+        entry: &'static str,
         restir_group: Option<&wgpu::BindGroup>,
         timer: u32,
     ) {
@@ -302,7 +302,10 @@ impl GpuBackend {
         if let Some(group) = restir_group {
             pass.set_bind_group(1, group, &[]);
         }
-        let (gx, gy) = workgroups(kernel, self.width, self.height);
+        let (gx, gy) = self
+            .ctx
+            .pipelines
+            .workgroups(kernel, self.width, self.height);
         pass.dispatch_workgroups(gx, gy, 1);
     }
 

@@ -2,7 +2,7 @@
 //! error reporting.
 use std::sync::{Arc, Mutex};
 
-use super::pipelines::Pipelines;
+use super::pipelines::{wide_ao, Pipelines};
 use crate::bail;
 use crate::error::{Error, Result};
 use crate::integrator::Kernel;
@@ -97,7 +97,7 @@ impl GpuContext {
                 .unwrap()
                 .get_or_insert(format!("GPU device lost ({reason:?}): {msg}"));
         });
-        let pipelines = Pipelines::new(&device);
+        let pipelines = Pipelines::new(&device, wide_ao(&info));
         let ctx = Self {
             device,
             queue,

@@ -3,6 +3,7 @@ use std::borrow::Cow;
 use std::collections::HashMap;
 
 use kernels::bindings;
+use kernels::integrators::ao;
 
 use super::bindings::layout;
 use crate::integrator::{Integrator, Kernel};
@@ -15,10 +16,38 @@ const SPIRV: &[u8] = include_bytes!(env!("kernels.spv"));
 /// entry.rs): two warps of 8×4 pixels.
 pub const IMAGE_WORKGROUP: (u32, u32) = (8, 8);
 /// Workgroup size of the AO kernels (`ao_kernel!` in entry.rs), whose threads share one
-/// pool of AO rays (`kernels::integrators::ao::render_group_pixel`).
-pub const AO_WORKGROUP: (u32, u32) = (16, 8);
-const _: () =
-    assert!((AO_WORKGROUP.0 * AO_WORKGROUP.1) as usize == kernels::integrators::ao::GROUP_THREADS);
+/// pool of AO rays (`kernels::integrators::ao::render_group_pixel`): 16×56 where `wide`
+/// (`wide_ao`), else 16×8.
+pub fn ao_workgroup(wide: bool) -> (u32, u32) {
+    let threads = if wide {
+        ao::WIDE_GROUP
+    } else {
+        ao::SMALL_GROUP
+    };
+    (ao::GROUP_WIDTH as u32, (threads / ao::GROUP_WIDTH) as u32)
+}
+/// AO's kernels in 16×56 workgroups, by the integrator table's (16×8) name.
+const WIDE_AO: [(&str, &str); 2] = [
+    ("entry::ao_main", "entry::ao_wide_main"),
+    ("entry::ao_plain_main", "entry::ao_plain_wide_main"),
+];
+/// PCI vendor id of NVIDIA's adapters.
+const NVIDIA: u32 = 0x10de;
+
+/// Whether an adapter runs AO in 16×56 workgroups: NVIDIA's, where they were 2–5% faster
+/// (H100; docs/PERFORMANCE.md, "Occupancy measured"). Elsewhere 16×8, as lavapipe needs (see
+/// `ao::SMALL_GROUP`) and as no other GPU was measured with.
+pub fn wide_ao(info: &wgpu::AdapterInfo) -> bool {
+    info.vendor == NVIDIA && info.device_type != wgpu::DeviceType::Cpu
+}
+
+/// The entry point that runs the table's entry point `name` (`wide`: see `wide_ao`).
+fn entry_name(name: &'static str, wide: bool) -> &'static str {
+    match WIDE_AO.iter().find(|(small, _)| *small == name) {
+        Some((_, wide_name)) if wide => wide_name,
+        _ => name,
+    }
+}
 /// Workgroup size of ReSTIR's passes (`threads(16, 8)`): four warps of 16×2 pixels. On the
 /// H100, 1–3% faster than 8×8 for every ReSTIR scene measured, while NEE and pt on the 1M
 /// suite scenes were 2–4% slower at 16×8 (docs/PERFORMANCE.md, "Workgroup shape").
@@ -39,18 +68,18 @@ fn is_ao(entry_point: &str) -> bool {
         .any(|k| matches!(k, Kernel::Image { entry_point: e, .. } if e == entry_point))
 }
 
-/// The workgroup size of a kernel's entry points.
-pub fn workgroup(kernel: Kernel) -> (u32, u32) {
+/// The workgroup size of a kernel's entry points (`wide`: see `wide_ao`).
+pub fn workgroup(kernel: Kernel, wide: bool) -> (u32, u32) {
     match kernel {
-        Kernel::Image { entry_point, .. } if is_ao(entry_point) => AO_WORKGROUP,
+        Kernel::Image { entry_point, .. } if is_ao(entry_point) => ao_workgroup(wide),
         Kernel::Image { .. } => IMAGE_WORKGROUP,
         Kernel::Restir { .. } => RESTIR_WORKGROUP,
     }
 }
 
 /// Workgroups that cover a `width`×`height` image.
-pub fn workgroups(kernel: Kernel, width: u32, height: u32) -> (u32, u32) {
-    let (wx, wy) = workgroup(kernel);
+pub fn workgroups(kernel: Kernel, wide: bool, width: u32, height: u32) -> (u32, u32) {
+    let (wx, wy) = workgroup(kernel, wide);
     (width.div_ceil(wx), height.div_ceil(wy))
 }
 
@@ -64,10 +93,11 @@ pub fn spirv_words() -> Vec<u32> {
         .collect()
 }
 
-/// The compute entry points of a kernel: an image kernel's one, or ReSTIR's passes.
-pub fn entry_points(kernel: Kernel) -> Vec<&'static str> {
+/// The compute entry points of a kernel: an image kernel's one, or ReSTIR's passes
+/// (`wide`: see `wide_ao`).
+pub fn entry_points(kernel: Kernel, wide: bool) -> Vec<&'static str> {
     match kernel {
-        Kernel::Image { entry_point, .. } => vec![entry_point],
+        Kernel::Image { entry_point, .. } => vec![entry_name(entry_point, wide)],
         Kernel::Restir { plain } => RestirPass::ENTRY_POINTS
             .iter()
             .map(|p| p.entry_point(plain))
@@ -86,14 +116,23 @@ pub struct Pipelines {
     /// and a render that runs one integrator should not wait for all ten (on a cold NVIDIA
     /// shader cache that was seconds).
     made: HashMap<&'static str, wgpu::ComputePipeline>,
+    /// AO in 16×56 workgroups (`wide_ao`).
+    wide: bool,
 }
 
 impl Pipelines {
-    pub fn new(device: &wgpu::Device) -> Self {
+    pub fn new(device: &wgpu::Device, wide: bool) -> Self {
+        // Every entry point of the module, in either workgroup size.
         let mut names: Vec<(&'static str, (u32, u32))> = Integrator::ALL
             .into_iter()
             .flat_map(Integrator::kernels)
-            .flat_map(|k| entry_points(k).into_iter().map(move |n| (n, workgroup(k))))
+            .flat_map(|k| {
+                [false, true].into_iter().flat_map(move |w| {
+                    entry_points(k, w)
+                        .into_iter()
+                        .map(move |n| (n, workgroup(k, w)))
+                })
+            })
             .collect();
         names.sort_unstable();
         names.dedup();
@@ -135,6 +174,7 @@ impl Pipelines {
             image_pipeline_layout,
             restir_pipeline_layout,
             made: HashMap::new(),
+            wide,
         }
     }
 
@@ -144,7 +184,7 @@ impl Pipelines {
             Kernel::Image { .. } => &self.image_pipeline_layout,
             Kernel::Restir { .. } => &self.restir_pipeline_layout,
         };
-        for name in entry_points(kernel) {
+        for name in entry_points(kernel, self.wide) {
             if self.made.contains_key(name) {
                 continue;
             }
@@ -160,8 +200,14 @@ impl Pipelines {
         }
     }
 
-    pub fn get(&self, entry_point: &str) -> &wgpu::ComputePipeline {
-        &self.made[entry_point]
+    /// The pipeline of the table's entry point `entry_point`, made by `ensure`.
+    pub fn get(&self, entry_point: &'static str) -> &wgpu::ComputePipeline {
+        &self.made[entry_name(entry_point, self.wide)]
+    }
+
+    /// Workgroups of `kernel` that cover a `width`×`height` image on this adapter.
+    pub fn workgroups(&self, kernel: Kernel, width: u32, height: u32) -> (u32, u32) {
+        workgroups(kernel, self.wide, width, height)
     }
 }
 
@@ -173,12 +219,14 @@ mod tests {
     fn ao_kernels_dispatch_in_their_workgroups_and_the_others_in_theirs() {
         for integrator in Integrator::ALL {
             for kernel in integrator.kernels() {
-                let want = match (integrator, kernel) {
-                    (Integrator::Ao, _) => AO_WORKGROUP,
-                    (_, Kernel::Image { .. }) => IMAGE_WORKGROUP,
-                    (_, Kernel::Restir { .. }) => RESTIR_WORKGROUP,
-                };
-                assert_eq!(workgroup(kernel), want, "{integrator:?}");
+                for wide in [false, true] {
+                    let want = match (integrator, kernel) {
+                        (Integrator::Ao, _) => ao_workgroup(wide),
+                        (_, Kernel::Image { .. }) => IMAGE_WORKGROUP,
+                        (_, Kernel::Restir { .. }) => RESTIR_WORKGROUP,
+                    };
+                    assert_eq!(workgroup(kernel, wide), want, "{integrator:?}");
+                }
             }
         }
     }

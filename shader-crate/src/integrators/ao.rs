@@ -160,26 +160,57 @@ pub fn render_pixel<const PLAIN: bool>(
     })
 }
 
-/// Threads of an AO workgroup (`runner::gpu::pipelines::AO_WORKGROUP`).
-pub const GROUP_THREADS: usize = 128;
-/// The pool's layout in workgroup memory, in 32-bit words: the next ray's index, the
-/// number of points with rays, those points' threads in the order they came (a byte each),
-/// each thread's count of escaped rays, and each thread's `AoRays` (origin, normal word,
-/// key, triangle). Kept small: the workgroup's memory comes out of the SM's L1, which the walk's
-/// node reads live on (docs/PERFORMANCE.md, "Benchmark suite").
+/// AO workgroups are rows of this many threads (`runner::gpu::pipelines::ao_workgroup`).
+pub const GROUP_WIDTH: usize = 16;
+/// Threads of an AO workgroup, all sharing one pool: 16×8, or 16×56 on NVIDIA adapters,
+/// where the larger workgroup caps the kernels at 72 registers instead of the driver's 80
+/// and its pool evens out more rays (2–5% faster on the H100; docs/PERFORMANCE.md,
+/// "Occupancy measured"). Not everywhere: lavapipe runs a workgroup's subgroups one after
+/// another, so its first subgroup traces the whole pool, and 7 times the rays run past its
+/// loop limit.
+pub const SMALL_GROUP: usize = 128;
+pub const WIDE_GROUP: usize = 896;
+/// A pool's layout in workgroup memory, in 32-bit words, for a group of `g` threads: the
+/// next ray's index, the number of points with rays, those points' threads in the order
+/// they came (`thread_bits` each), each thread's count of escaped rays, and each thread's
+/// `AoRays` (origin, normal word, key, triangle). Kept small: the workgroup's memory comes
+/// out of the SM's L1, which the walk's node reads live on (docs/PERFORMANCE.md, "Benchmark
+/// suite").
 const NEXT: usize = 0;
 const POINTS: usize = 1;
 const POINT_THREADS: usize = 2;
-const ESCAPED: usize = POINT_THREADS + GROUP_THREADS / 4;
-const RAYS: usize = ESCAPED + GROUP_THREADS;
 const RAYS_WORDS: usize = 6;
-const _: () = assert!(GROUP_THREADS <= 256, "a point's thread must fit in a byte");
-/// Where point `slot`'s thread is kept in the point list: the word and the shift of its byte.
-fn point_thread_byte(slot: usize) -> (usize, u32) {
-    (POINT_THREADS + slot / 4, (slot % 4 * 8) as u32)
+/// Bits of a point's thread in the point list: a byte while the group has at most 256.
+const fn thread_bits(g: usize) -> usize {
+    if g <= 256 {
+        8
+    } else {
+        16
+    }
 }
-/// Words of workgroup memory an AO workgroup needs.
-pub const GROUP_WORDS: usize = RAYS + RAYS_WORDS * GROUP_THREADS;
+const fn escaped_word(g: usize) -> usize {
+    POINT_THREADS + g * thread_bits(g) / 32
+}
+const fn rays_word(g: usize) -> usize {
+    escaped_word(g) + g
+}
+/// Words of workgroup memory an AO workgroup of `g` threads needs.
+pub const fn group_words(g: usize) -> usize {
+    rays_word(g) + RAYS_WORDS * g
+}
+const _: () = assert!(
+    WIDE_GROUP < 1 << 16,
+    "a point's thread must fit in its bits"
+);
+/// Where point `slot`'s thread is kept in the point list of a group of `G`: the word and
+/// the shift of its bits.
+fn point_thread_bits<const G: usize>(slot: usize) -> (usize, u32) {
+    let per_word = 32 / thread_bits(G);
+    (
+        POINT_THREADS + slot / per_word,
+        (slot % per_word * thread_bits(G)) as u32,
+    )
+}
 
 /// A workgroup's shared memory: loads and stores of words, an atomic add, and a barrier
 /// that every thread of the group must reach (workgroup memory on the GPU; in tests,
@@ -196,23 +227,24 @@ pub trait GroupMemory {
 /// The AO rays of a workgroup's points. Ray g is ray ⌊g / points⌋ of point g mod points:
 /// the threads tracing side by side take the same ray k of neighbouring points, which
 /// the strata's shared order sends in similar directions.
-struct GroupPool<'a, M: GroupMemory> {
+struct GroupPool<'a, M: GroupMemory, const G: usize> {
     memory: &'a mut M,
     points: Divisor,
     total: u32,
     strata: Strata,
 }
 
-impl<M: GroupMemory> GroupPool<'_, M> {
+impl<M: GroupMemory, const G: usize> GroupPool<'_, M, G> {
     /// Ray `index` as (which ray of its point, the thread of its point).
     fn point_of(&self, index: u32) -> (u32, usize) {
         let (k, slot) = self.points.div_rem(index);
-        let (word, shift) = point_thread_byte(slot as usize);
-        (k, ((self.memory.load(word) >> shift) & 0xff) as usize)
+        let (word, shift) = point_thread_bits::<G>(slot as usize);
+        let mask = (1u32 << thread_bits(G)) - 1;
+        (k, ((self.memory.load(word) >> shift) & mask) as usize)
     }
 }
 
-impl<M: GroupMemory> RayPool for GroupPool<'_, M> {
+impl<M: GroupMemory, const G: usize> RayPool for GroupPool<'_, M, G> {
     fn take(&mut self) -> u32 {
         let index = self.memory.fetch_add(NEXT, 1);
         if index >= self.total {
@@ -224,7 +256,7 @@ impl<M: GroupMemory> RayPool for GroupPool<'_, M> {
 
     fn ray(&self, index: u32) -> (Ray, u32) {
         let (k, thread) = self.point_of(index);
-        let base = RAYS + RAYS_WORDS * thread;
+        let base = rays_word(G) + RAYS_WORDS * thread;
         let f = |i: usize| f32::from_bits(self.memory.load(base + i));
         // The point's frame is made again per ray rather than kept in workgroup memory:
         // six more words a point made AO 0.3–1% slower (H200; docs/PERFORMANCE.md,
@@ -238,7 +270,7 @@ impl<M: GroupMemory> RayPool for GroupPool<'_, M> {
 
     fn escaped(&mut self, index: u32) {
         let (_, thread) = self.point_of(index);
-        self.memory.fetch_add(ESCAPED + thread, 1);
+        self.memory.fetch_add(escaped_word(G) + thread, 1);
     }
 
     fn exhausted(&self) -> bool {
@@ -249,7 +281,7 @@ impl<M: GroupMemory> RayPool for GroupPool<'_, M> {
 /// Group phase 1, every thread `thread` after the group's memory was cleared (`clear`):
 /// trace the camera ray of its pixel's sample and put the AO rays of what it sees into
 /// the pool. Returns whether the ray hit something (the caller counts its rays).
-pub fn group_camera<const PLAIN: bool, M: GroupMemory>(
+pub fn group_camera<const PLAIN: bool, const G: usize, M: GroupMemory>(
     scene: &SceneBuffers,
     memory: &mut M,
     thread: usize,
@@ -260,7 +292,7 @@ pub fn group_camera<const PLAIN: bool, M: GroupMemory>(
         return false;
     };
     let rays = AoRays::new(p, prim, n, rng);
-    let base = RAYS + RAYS_WORDS * thread;
+    let base = rays_word(G) + RAYS_WORDS * thread;
     memory.store(base, rays.origin.x.to_bits());
     memory.store(base + 1, rays.origin.y.to_bits());
     memory.store(base + 2, rays.origin.z.to_bits());
@@ -269,22 +301,22 @@ pub fn group_camera<const PLAIN: bool, M: GroupMemory>(
     memory.store(base + 5, rays.prim);
     // The thread into byte `slot` of the (cleared) list: adding to a zero byte sets it.
     let slot = memory.fetch_add(POINTS, 1) as usize;
-    let (word, shift) = point_thread_byte(slot);
+    let (word, shift) = point_thread_bits::<G>(slot);
     memory.fetch_add(word, (thread as u32) << shift);
     true
 }
 
 /// Group phase 2, every thread (or, on one thread, the whole pool): trace rays from the
 /// pool until it is empty.
-pub fn group_trace<const PLAIN: bool, M: GroupMemory>(
+pub fn group_trace<const PLAIN: bool, const G: usize, M: GroupMemory>(
     scene: &SceneBuffers,
     params: &FrameParams,
     memory: &mut M,
 ) {
     let points = memory.load(POINTS);
-    // At most GROUP_THREADS × 2^24 rays (the CLI caps --ao-rays at 2^24): with each
+    // At most WIDE_GROUP × 2^22 rays (the CLI caps --ao-rays at 2^22): with each
     // thread's last, failed take, the counter stays below 2^32.
-    let mut pool = GroupPool {
+    let mut pool = GroupPool::<M, G> {
         memory,
         points: Divisor::new(points.max(1)),
         total: points * params.ao_rays,
@@ -295,17 +327,21 @@ pub fn group_trace<const PLAIN: bool, M: GroupMemory>(
 
 /// Group phase 3, every thread: the unoccluded fraction of its point's rays; and the
 /// thread's words cleared for the next sample (thread 0 clears the group's).
-pub fn group_result<M: GroupMemory>(params: &FrameParams, memory: &mut M, thread: usize) -> f32 {
-    let open = memory.load(ESCAPED + thread);
-    clear(memory, thread);
+pub fn group_result<const G: usize, M: GroupMemory>(
+    params: &FrameParams,
+    memory: &mut M,
+    thread: usize,
+) -> f32 {
+    let open = memory.load(escaped_word(G) + thread);
+    clear::<G, M>(memory, thread);
     open as f32 / params.ao_rays.max(1) as f32
 }
 
 /// Clear thread `thread`'s counter, a word of the point list with the first quarter of the
 /// threads, and with thread 0 the pool's: before the first sample.
-pub fn clear<M: GroupMemory>(memory: &mut M, thread: usize) {
-    memory.store(ESCAPED + thread, 0);
-    if thread < GROUP_THREADS / 4 {
+pub fn clear<const G: usize, M: GroupMemory>(memory: &mut M, thread: usize) {
+    memory.store(escaped_word(G) + thread, 0);
+    if thread < escaped_word(G) - POINT_THREADS {
         memory.store(POINT_THREADS + thread, 0);
     }
     if thread == 0 {
@@ -314,11 +350,11 @@ pub fn clear<M: GroupMemory>(memory: &mut M, thread: usize) {
     }
 }
 
-/// Pixel (x, y)'s samples, run by thread `thread` of a workgroup of `GROUP_THREADS` that
+/// Pixel (x, y)'s samples, run by thread `thread` of a workgroup of `G` threads that
 /// all call this together (threads beyond the image with `inside` false: they trace no
 /// camera ray, but take rays from the pool). The same sums and ray counts as
 /// `render_pixel`.
-pub fn render_group_pixel<const PLAIN: bool, M: GroupMemory>(
+pub fn render_group_pixel<const PLAIN: bool, const G: usize, M: GroupMemory>(
     scene: &SceneBuffers,
     params: &FrameParams,
     memory: &mut M,
@@ -327,7 +363,7 @@ pub fn render_group_pixel<const PLAIN: bool, M: GroupMemory>(
     y: u32,
     inside: bool,
 ) -> PixelResult {
-    clear(memory, thread);
+    clear::<G, M>(memory, thread);
     let mut result = PixelResult::default();
     let mut s = 0;
     while s < params.samples {
@@ -335,13 +371,13 @@ pub fn render_group_pixel<const PLAIN: bool, M: GroupMemory>(
         let mut hit = false;
         if inside {
             let (ray, mut rng) = camera_sample(params, x, y, s);
-            hit = group_camera::<PLAIN, M>(scene, memory, thread, &ray, &mut rng);
+            hit = group_camera::<PLAIN, G, M>(scene, memory, thread, &ray, &mut rng);
             result.rays += 1 + if hit { params.ao_rays } else { 0 };
         }
         memory.barrier();
-        group_trace::<PLAIN, M>(scene, params, memory);
+        group_trace::<PLAIN, G, M>(scene, params, memory);
         memory.barrier();
-        let open = group_result(params, memory, thread);
+        let open = group_result::<G, M>(params, memory, thread);
         if hit {
             result.sum += Vec3::splat(open);
         }
