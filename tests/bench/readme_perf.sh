@@ -13,10 +13,11 @@ export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
 nvidia-smi --query-gpu=name,driver_version,clocks.sm --format=csv,noheader
 HD=(--backend gpu --width 1920 --height 1080)
 "$R" bench --suite "${HD[@]}"
-ms() { # label, bench arguments: the median ms per frame and rays per second
+ms() { # label, bench arguments: median ms per frame and per pass (a ReSTIR frame of the
+  # --spp 8 sequence; one spp elsewhere), rays per second
   local out
   out=$("$R" bench "${HD[@]}" --runs 5 --warmup 3 "${@:2}" 2>&1)
-  echo "$1 $(echo "$out" | awk '/^ms\/frame/{print $5} /^rays\/s/{print $2, $3}' | xargs)"
+  echo "$1 $(echo "$out" | awk '/^ms\/(frame|pass)/{print $1, $5} /^rays\/s/{print $2, $3}' | xargs)"
 }
 for s in cornell-box many-lights rocks-1m; do
   for i in pt nee mis ris; do ms "$s $i depth-8" --scene "$s" --integrator "$i" --max-depth 8 --spp 1; done
