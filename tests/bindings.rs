@@ -5,7 +5,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use kernels::bindings::{Binding, PRESENT, RESTIR, SCENE};
-use runner::gpu::entry_points;
+use runner::gpu::every_entry_point;
 use runner::integrator::{Integrator, Kernel};
 use runner::restir::RestirPass;
 
@@ -126,8 +126,7 @@ fn every_entry_point_the_host_dispatches_exists() {
     // Image kernels in either workgroup size (AO's 16×56 on NVIDIA adapters).
     for kernel in Integrator::ALL.into_iter().flat_map(Integrator::kernels) {
         if let Kernel::Image { .. } = kernel {
-            names.extend(entry_points(kernel, false));
-            names.extend(entry_points(kernel, true));
+            names.extend(every_entry_point(kernel).into_iter().map(|(name, _)| name));
         }
     }
     for name in names {
@@ -140,10 +139,7 @@ fn every_entry_point_the_host_dispatches_exists() {
     // ReSTIR passes bind set 1; image kernels only set 0 (their pipeline layout has one set).
     for kernel in Integrator::ALL.into_iter().flat_map(Integrator::kernels) {
         if let Kernel::Image { .. } = kernel {
-            for entry_point in [false, true]
-                .into_iter()
-                .flat_map(|w| entry_points(kernel, w))
-            {
+            for (entry_point, _) in every_entry_point(kernel) {
                 assert!(
                     module[entry_point].iter().all(|b| b.0 == 0),
                     "{entry_point} binds a set the image pipeline layout does not have"

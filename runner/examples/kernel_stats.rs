@@ -14,7 +14,7 @@ use std::ffi::CStr;
 
 use ash::vk;
 use kernels::bindings::{self, Binding};
-use runner::gpu::{entry_points, spirv_words};
+use runner::gpu::{every_entry_point, spirv_words};
 use runner::integrator::Integrator;
 
 const EXTENSION: &CStr = ash::khr::pipeline_executable_properties::NAME;
@@ -151,10 +151,7 @@ unsafe fn run() -> Result<(), String> {
             runner::integrator::Kernel::Restir { .. } => restir_layout,
         };
         // Both workgroup sizes of AO (`runner::gpu::wide_ao`).
-        for name in [false, true]
-            .into_iter()
-            .flat_map(|wide| entry_points(kernel, wide))
-        {
+        for (name, _) in every_entry_point(kernel) {
             let asked = wanted.is_empty() || wanted.iter().any(|w| name.contains(w.as_str()));
             if !asked || !seen.insert(name) {
                 continue;

@@ -16,4 +16,4 @@ mod timestamps;
 pub use backend::{check_buffer_size, check_fits, GpuBackend};
 pub use bindings::{bind_group, layout};
 pub use device::{adapters, adapters_of, instance, is_software, GpuContext};
-pub use pipelines::{entry_points, spirv_words, wide_ao};
+pub use pipelines::{every_entry_point, spirv_words, wide_ao};

@@ -105,6 +105,21 @@ pub fn entry_points(kernel: Kernel, wide: bool) -> Vec<&'static str> {
     }
 }
 
+/// The compute entry points of a kernel on any adapter (AO's in both workgroup sizes, which
+/// the module holds), each once and with its workgroup size.
+pub fn every_entry_point(kernel: Kernel) -> Vec<(&'static str, (u32, u32))> {
+    let mut all = Vec::new();
+    for wide in [false, true] {
+        for name in entry_points(kernel, wide) {
+            let entry = (name, workgroup(kernel, wide));
+            if !all.contains(&entry) {
+                all.push(entry);
+            }
+        }
+    }
+    all
+}
+
 /// The module, the layouts of both descriptor sets, and the pipelines made so far.
 pub struct Pipelines {
     module: wgpu::ShaderModule,
@@ -126,13 +141,7 @@ impl Pipelines {
         let mut names: Vec<(&'static str, (u32, u32))> = Integrator::ALL
             .into_iter()
             .flat_map(Integrator::kernels)
-            .flat_map(|k| {
-                [false, true].into_iter().flat_map(move |w| {
-                    entry_points(k, w)
-                        .into_iter()
-                        .map(move |n| (n, workgroup(k, w)))
-                })
-            })
+            .flat_map(every_entry_point)
             .collect();
         names.sort_unstable();
         names.dedup();
