@@ -13,9 +13,7 @@
 # says otherwise, on any scene).
 set -uo pipefail
 DIR=${DIR:-.dev}
-for f in .gl/*.deb; do dpkg -x "$f" /; done
-ldconfig
-export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
+. tests/bench/device_env.sh
 build() { local b=${1%%@*}; echo "${b%%:*}"; }
 for v in $VARS; do
   b=$DIR/runner-$(build "$v")

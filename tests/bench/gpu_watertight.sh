@@ -8,9 +8,7 @@
 set -uo pipefail
 R=${RUNNER:-runner}
 scene=${1:-shell-1m}
-for f in .gl/*.deb; do [ -e "$f" ] && dpkg -x "$f" /; done
-ldconfig
-export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
+. tests/bench/device_env.sh
 dir=$(mktemp -d)
 # The runner refuses to render an image it knows is black, so the reference is written here.
 spp=${SPP:-64} w=${WIDTH:-1920} h=${HEIGHT:-1080}

@@ -7,9 +7,7 @@
 # usage: [RUNNER=path/to/runner] bash tests/bench/readme_perf.sh
 set -uo pipefail
 R=${RUNNER:-target/release/runner}
-for f in .gl/*.deb; do [ -e "$f" ] && dpkg -x "$f" /; done
-ldconfig 2>/dev/null
-export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
+. tests/bench/device_env.sh
 nvidia-smi --query-gpu=name,driver_version,clocks.sm --format=csv,noheader
 HD=(--backend gpu --width 1920 --height 1080)
 "$R" bench --suite "${HD[@]}"

@@ -8,8 +8,7 @@
 # usage: [SC="scenes"] [VK="scenes for the Vulkan bench"] [PROF="scenes to profile"]
 #        [BASE="ao ao_fast ao_notri ao_count"] [EXTRA="NO_CANON TRI_ONE+EDGE_XOR ..."] bash tests/bench/cuda_ao/run.sh
 set -u
-for f in .gl/*.deb; do dpkg -x "$f" / ; done; ldconfig
-export XDG_RUNTIME_DIR=/tmp
+. tests/bench/device_env.sh
 R=/tmp/runner; xz -dc ${RUNNER_XZ:-.dev/runner-main.xz} > $R; chmod +x $R
 D=/tmp/dump_ao; xz -dc ${DUMP_XZ:-.dev/dump_ao.xz} > $D; chmod +x $D
 nvidia-smi --query-gpu=name,clocks.sm,clocks.max.sm --format=csv,noheader
