@@ -2,14 +2,15 @@
 //! that they take neither a test nor a step: the triangle it leaves, and the triangles near
 //! it in leaf order that lie wholly below the plane it leaves.
 //!
-//! An AO ray starts at `origin`, off its surface on the side of `n`, and runs into the
-//! hemisphere about `n` (`cosine_hemisphere` never gives a direction closer than 2^-12 to
-//! the plane: its `1 - u1` is at least 2^-24). Every point it reaches is above the plane
-//! through `origin` normal to `n`, so a triangle whose three corners lie below that plane
-//! cannot block it. On a curved or flat surface that is most of the triangles beside the
-//! point's own, which share its leaf or its node and were tested by nearly every one of its
-//! rays: per AO ray (1080p × 64 rays, the GPU's walk on the CPU,
-//! `runner/examples/ao_walk_floor.rs`), the walk's triangle tests fall from 1.23 to … on
+//! An AO ray starts at `origin`, off its surface on the side of the surface's normal `n`,
+//! and runs into the hemisphere about `n`'s 16-bit encoding (`encode_unit`, within 1e-4
+//! of `n`), never closer than 2^-12 to that hemisphere's plane (`cosine_hemisphere`'s
+//! `1 - u1` is at least 2^-24): so never closer than 1e-4 to the plane through `origin`
+//! normal to `n`, and every point it reaches lies above that plane. A triangle whose three
+//! corners lie below the plane cannot block it. On a curved or flat surface that is most
+//! of the triangles beside the point's own, which share its leaf or its node and were
+//! tested by nearly every one of its rays: per AO ray (1080p × 64 rays, the GPU's walk on
+//! the CPU, `runner/examples/ao_walk_floor.rs`), the walk's triangle tests fall from 1.23 to … on
 //! rocks-1m, … (docs/PERFORMANCE.md, "Triangles below the plane a ray leaves").
 //!
 //! The window is the 32 triangle slots around the point's own (`BEFORE` before it): a

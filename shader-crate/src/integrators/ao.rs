@@ -53,8 +53,9 @@ impl AoRays {
             encode_unit(n),
             rng.next_u32(),
         );
-        // About the normal the directions are drawn around, from where they start.
-        rays.skip = scene.skip_below(rays.origin, rays.frame[2], prim);
+        // Below the plane of the surface's own normal: the directions, drawn about its
+        // 16-bit encoding, stay above it too (`skip`).
+        rays.skip = scene.skip_below(rays.origin, n, prim);
         rays
     }
 
