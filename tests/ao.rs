@@ -46,8 +46,8 @@ fn wall() -> Vec<Triangle> {
 }
 
 /// The triangle under point p of the floor, as a camera ray from above finds it; and
-/// `INVALID`: the AO rays either skip the triangle they leave or test it (see
-/// `AoRays::prim`), with the same result.
+/// `INVALID`: the AO rays either skip the triangles they cannot meet or test them (see
+/// `AoRays::skip`), with the same result.
 fn floor_prims(scene: &SceneBuffers, p: Vec3) -> [u32; 2] {
     let hit = scene.closest_hit::<false>(&Ray::new(p + Vec3::Z, -Vec3::Z), f32::INFINITY);
     assert!(hit.is_hit(), "no floor under {p}");
@@ -67,7 +67,7 @@ fn open_plane_is_fully_unoccluded() {
     ] {
         for prim in floor_prims(&scene, p) {
             for strata in [Strata::NONE, Strata::new(10_000)] {
-                let rays = AoRays::new(p, prim, Vec3::Z, &mut rng);
+                let rays = AoRays::new(&scene, p, prim, Vec3::Z, &mut rng);
                 let v = ambient_occlusion::<false>(&scene, rays, 10_000, strata, f32::INFINITY);
                 assert_eq!(v, 1.0, "at {p}, leaving {prim}");
             }
@@ -110,7 +110,7 @@ fn corner_of_two_planes_matches_the_analytic_value() {
         let se = (want * (1.0 - want) / rays as f64).sqrt().max(1e-6);
         for prim in floor_prims(&scene, p) {
             for strata in [Strata::NONE, Strata::new(rays)] {
-                let point = AoRays::new(p, prim, Vec3::Z, &mut rng);
+                let point = AoRays::new(&scene, p, prim, Vec3::Z, &mut rng);
                 let got = ambient_occlusion::<false>(&scene, point, rays, strata, distance) as f64;
                 assert!(
                     z_score(got, want, se) < 5.0 || (got - want).abs() < 1e-5,

@@ -11,7 +11,8 @@ use kernels::bvh::{
 };
 use kernels::intersect::{Hit, Ray};
 use kernels::rng::Rng;
-use kernels::types::{CwBvhNode, CwBvhPlanes, CwBvhSlotNode, Material, Triangle, INVALID};
+use kernels::skip::Skip;
+use kernels::types::{CwBvhNode, CwBvhPlanes, CwBvhSlotNode, Material, Triangle};
 use runner::accel::{build_bvh2, build_cwbvh, reorder, BvhQuality};
 use runner::scene::default_scene_path;
 
@@ -234,11 +235,17 @@ fn bundles_agree_with_brute_force(
             0 => f32::INFINITY,
             _ => (hi - lo).length() * rng.next_f32() * rng.next_f32(),
         };
-        let got =
-            cwbvh_occluded::<false>(leaf_order, &Cutouts::NONE, decoded, &rays, INVALID, limit);
+        let got = cwbvh_occluded::<false>(
+            leaf_order,
+            &Cutouts::NONE,
+            decoded,
+            &rays,
+            Skip::NONE,
+            limit,
+        );
         let (tc, none) = (leaf_order, &Cutouts::NONE);
         let portable =
-            cwbvh_occluded_without_avx::<false>(tc, none, decoded, &rays, INVALID, limit);
+            cwbvh_occluded_without_avx::<false>(tc, none, decoded, &rays, Skip::NONE, limit);
         assert_eq!(got, portable, "with and without AVX: {rays:?} to {limit}");
         for (k, ray) in rays.iter().enumerate() {
             let want = brute_force_any_hit(words, &Cutouts::NONE, ray, limit);

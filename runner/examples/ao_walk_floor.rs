@@ -21,6 +21,7 @@ use kernels::bvh::{cwbvh_ao_walk_nodes, cwbvh_traverse};
 use kernels::glam::UVec4;
 use kernels::integrators::ao::strata;
 use kernels::intersect::Ray;
+use kernels::skip::Skip;
 use kernels::types::CwBvhNode;
 use rayon::prelude::*;
 use runner::ao_order::grid_point;
@@ -58,13 +59,13 @@ fn main() {
     let triangles = buffers.triangles;
     let rays_strata = strata(&params);
     let distance = params.ao_distance;
-    let walk = |ray: &Ray, leaves: u32, length: f32| {
-        let end = (leaves, length);
+    let walk = |ray: &Ray, skip: Skip, length: f32| {
+        let end = (skip, length);
         cwbvh_ao_walk_nodes::<false, CwBvhNode>(triangles, &cut, nodes, ray, end, params.ao_order)
             as u64
     };
     // The AO rays of the grid's hits, with the triangle each leaves.
-    let ao_rays: Vec<(Ray, u32)> = (0..ROWS)
+    let ao_rays: Vec<(Ray, Skip)> = (0..ROWS)
         .into_par_iter()
         .flat_map_iter(|row| {
             let mut out = Vec::new();
@@ -74,7 +75,7 @@ fn main() {
                 if let Some(point) = grid_point::<false>(&buffers, nodes, &cut, &params, cell, grid)
                 {
                     for k in (0..params.ao_rays).step_by(EVERY) {
-                        out.push((point.ray(k, rays_strata), point.prim));
+                        out.push((point.ray(k, rays_strata), point.skip));
                     }
                 }
             }
@@ -82,7 +83,7 @@ fn main() {
         })
         .collect();
     let rays = ao_rays.len() as u64;
-    let sum = |f: &(dyn Fn(&Ray, u32) -> u64 + Sync)| -> u64 {
+    let sum = |f: &(dyn Fn(&Ray, Skip) -> u64 + Sync)| -> u64 {
         ao_rays.par_iter().map(|(ray, prim)| f(ray, *prim)).sum()
     };
     // The walks as the GPU runs them, alone, so that the triangle counter sees only them.

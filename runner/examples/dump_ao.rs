@@ -54,7 +54,7 @@ fn main() {
                         }
                         continue;
                     };
-                    let r = AoRays::new(p, prim, n, &mut rng);
+                    let r = AoRays::new(&buffers, p, prim, n, &mut rng);
                     if reference {
                         open.push(ao::ambient_occlusion::<true>(
                             &buffers,
@@ -70,7 +70,7 @@ fn main() {
                         r.origin.z.to_bits(),
                         r.normal,
                         r.key,
-                        r.prim,
+                        prim,
                     ]);
                 }
                 (row, open)

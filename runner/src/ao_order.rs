@@ -153,7 +153,7 @@ fn pilot_point<const PLAIN: bool>(
     let every = (params.ao_rays / PILOT_RAYS).max(1);
     for k in (0..params.ao_rays).step_by(every as usize) {
         let ao = point.ray(k, strata);
-        let end = (point.prim, params.ao_distance);
+        let end = (point.skip, params.ao_distance);
         let walk = |order| {
             cwbvh_ao_walk_nodes::<PLAIN, CwBvhNode>(buffers.triangles, cut, nodes, &ao, end, order)
         };
@@ -188,6 +188,6 @@ pub fn grid_point<const PLAIN: bool>(
     let s = surface_hit(buffers, &ray, &hit);
     let mut rng = kernels::rng::Rng::new(row * grid.0 + column, 0, 0, params.seed);
     Some(kernels::integrators::ao::AoRays::new(
-        s.p, s.prim, s.n, &mut rng,
+        buffers, s.p, s.prim, s.n, &mut rng,
     ))
 }

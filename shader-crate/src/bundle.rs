@@ -16,6 +16,7 @@
 use crate::bvh::{count, cwbvh_octant_inv, cwbvh_traverse, safe_recip, Cutouts, CWBVH_STACK};
 use crate::glam::{UVec4, Vec3};
 use crate::intersect::{Ray, TriangleTester};
+use crate::skip::Skip;
 use crate::types::cwbvh_meta;
 use crate::types::{CwBvhPlanes, Triangle};
 
@@ -38,22 +39,22 @@ fn first_rays(n: usize) -> u64 {
 
 /// Which of `rays` (at most `BUNDLE_RAYS`, all from one origin) meet a solid triangle
 /// before `t_max`, as bit k for ray k, over a CWBVH of decoded nodes (the CPU's
-/// `TraversalNode`). Triangle `leaves` (the one the rays leave from, or `INVALID`) is never
+/// `TraversalNode`). The triangles of `skip` (which the rays cannot meet) are never
 /// tested, as in `CwbvhWalk`.
 pub fn cwbvh_occluded<const PLAIN: bool>(
     triangles: &[UVec4],
     cutouts: &Cutouts,
     nodes: &[UVec4],
     rays: &[Ray],
-    leaves: u32,
+    skip: Skip,
     t_max: f32,
 ) -> u64 {
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx") && std::is_x86_feature_detected!("popcnt") {
         // SAFETY: the CPU has both (checked just now).
-        return unsafe { occluded_avx::<PLAIN>(triangles, cutouts, nodes, rays, leaves, t_max) };
+        return unsafe { occluded_avx::<PLAIN>(triangles, cutouts, nodes, rays, skip, t_max) };
     }
-    walk::<PLAIN, false>(triangles, cutouts, nodes, rays, leaves, t_max)
+    walk::<PLAIN, false>(triangles, cutouts, nodes, rays, skip, t_max)
 }
 
 /// `cwbvh_occluded` as a CPU without AVX runs it, whatever this one has (for the tests,
@@ -63,10 +64,10 @@ pub fn cwbvh_occluded_without_avx<const PLAIN: bool>(
     cutouts: &Cutouts,
     nodes: &[UVec4],
     rays: &[Ray],
-    leaves: u32,
+    skip: Skip,
     t_max: f32,
 ) -> u64 {
-    walk::<PLAIN, false>(triangles, cutouts, nodes, rays, leaves, t_max)
+    walk::<PLAIN, false>(triangles, cutouts, nodes, rays, skip, t_max)
 }
 
 /// `walk` compiled for CPUs with AVX and popcount, with `RayLanes`' AVX tests: its bit
@@ -80,10 +81,10 @@ unsafe fn occluded_avx<const PLAIN: bool>(
     cutouts: &Cutouts,
     nodes: &[UVec4],
     rays: &[Ray],
-    leaves: u32,
+    skip: Skip,
     t_max: f32,
 ) -> u64 {
-    walk::<PLAIN, true>(triangles, cutouts, nodes, rays, leaves, t_max)
+    walk::<PLAIN, true>(triangles, cutouts, nodes, rays, skip, t_max)
 }
 
 /// `cwbvh_occluded`'s walk; `AVX`: with `RayLanes`' AVX tests, only where the CPU has AVX
@@ -94,7 +95,7 @@ fn walk<const PLAIN: bool, const AVX: bool>(
     cutouts: &Cutouts,
     nodes: &[UVec4],
     rays: &[Ray],
-    leaves: u32,
+    skip: Skip,
     t_max: f32,
 ) -> u64 {
     let n = rays.len().min(BUNDLE_RAYS);
@@ -120,7 +121,7 @@ fn walk<const PLAIN: bool, const AVX: bool>(
         testers: &testers,
         inv_dir: &inv_dir,
         origin,
-        leaves,
+        skip,
         t_max,
     };
     let mut occluded = 0u64;
@@ -190,7 +191,7 @@ fn walk<const PLAIN: bool, const AVX: bool>(
             leaf_slots &= leaf_slots - 1;
             for prim in leaf_triangles(node, slot) {
                 let open = slot_rays[slot] & !occluded;
-                if open != 0 && prim != leaves {
+                if open != 0 && !skip.holds(prim) {
                     occluded |= bundle.blocked::<PLAIN>(prim, open);
                 }
             }
@@ -255,8 +256,8 @@ struct Bundle<'a, const AVX: bool> {
     /// Each ray's reciprocal direction (the slab tests without `RayLanes`).
     inv_dir: &'a [Vec3; BUNDLE_RAYS],
     origin: Vec3,
-    /// The triangle the rays leave from, never tested.
-    leaves: u32,
+    /// Triangles the rays cannot meet, never tested.
+    skip: Skip,
     t_max: f32,
 }
 
@@ -320,7 +321,7 @@ impl<const AVX: bool> Bundle<'_, AVX> {
                 let slot = leaf_slots.trailing_zeros() as usize;
                 leaf_slots &= leaf_slots - 1;
                 for prim in leaf_triangles(node, slot) {
-                    if prim != self.leaves && self.blocked::<PLAIN>(prim, ray) != 0 {
+                    if !self.skip.holds(prim) && self.blocked::<PLAIN>(prim, ray) != 0 {
                         return Some(true);
                     }
                 }

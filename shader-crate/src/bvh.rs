@@ -7,6 +7,7 @@ use crate::intersect::{intersect_aabb, Hit, Ray, TriangleTester};
 use crate::math::{max, min, vec3};
 use crate::rng::pcg_hash;
 use crate::sampling::orthonormal_basis;
+use crate::skip::Skip;
 use crate::texture::sample_bilinear;
 use crate::types::cwbvh_meta::{FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
 use crate::types::{
@@ -21,9 +22,9 @@ pub trait RayPool {
     /// The index of the next ray to trace, `INVALID` when there are no more.
     fn take(&mut self) -> u32;
     /// Ray `index`, a pure function of the index so that any thread may trace it, and the
-    /// triangle it leaves from (its origin off the triangle's side that it points to), which
-    /// it cannot meet and the walk does not test; or `INVALID`.
-    fn ray(&self, index: u32) -> (Ray, u32);
+    /// triangles it cannot meet, which the walk does not test (`Skip`: the one it leaves,
+    /// its origin off the side it points to, and those below that side's plane).
+    fn ray(&self, index: u32) -> (Ray, Skip);
     /// Ray `index` met nothing before its end.
     fn escaped(&mut self, index: u32);
     /// Whether every ray has been taken.
@@ -253,8 +254,8 @@ impl<'a> SceneBuffers<'a> {
             if index == INVALID {
                 return;
             }
-            let (ray, leaves) = pool.ray(index);
-            let mut walk = CwbvhWalk::new(&ray, t_max, leaves, order);
+            let (ray, skip) = pool.ray(index);
+            let mut walk = CwbvhWalk::new(&ray, t_max, skip, order);
             let mut done = false;
             // A warp with fewer threads in the loop than that (lavapipe's subgroups of 8, or
             // a warp of which fewer threads found a first ray) waits for all of them.
@@ -278,8 +279,8 @@ impl<'a> SceneBuffers<'a> {
                     if index == INVALID {
                         break;
                     }
-                    let (ray, leaves) = pool.ray(index);
-                    walk.restart(&ray, t_max, leaves, order);
+                    let (ray, skip) = pool.ray(index);
+                    walk.restart(&ray, t_max, skip, order);
                     done = false;
                 }
             }
@@ -301,23 +302,23 @@ impl<'a> SceneBuffers<'a> {
         }
     }
 
-    /// Which of `rays` (at most `bundle::BUNDLE_RAYS`, all from one point, leaving triangle
-    /// `leaves` or `INVALID`) meet something before `t_max`: bit k for ray k. The CPU's
+    /// Which of `rays` (at most `bundle::BUNDLE_RAYS`, all from one point, which cannot meet
+    /// the triangles of `skip`) meet something before `t_max`: bit k for ray k. The CPU's
     /// ambient occlusion (see `bundle`); each bit is `any_hit` of its ray.
     #[cfg(not(target_arch = "spirv"))]
-    pub fn occluded_bundle<const PLAIN: bool>(&self, rays: &[Ray], leaves: u32, t_max: f32) -> u64 {
+    pub fn occluded_bundle<const PLAIN: bool>(&self, rays: &[Ray], skip: Skip, t_max: f32) -> u64 {
         #[cfg(not(any(feature = "traversal-bvh2", feature = "traversal-brute-force")))]
         return crate::bundle::cwbvh_occluded::<PLAIN>(
             self.triangles,
             &self.cutouts(),
             self.nodes,
             rays,
-            leaves,
+            skip,
             t_max,
         );
         #[cfg(any(feature = "traversal-bvh2", feature = "traversal-brute-force"))]
         {
-            let _ = leaves;
+            let _ = skip;
             let mut occluded = 0;
             for (k, ray) in rays.iter().take(crate::bundle::BUNDLE_RAYS).enumerate() {
                 if self.any_hit::<PLAIN>(ray, t_max) {
@@ -338,6 +339,13 @@ impl<'a> SceneBuffers<'a> {
     /// Whether surface point p (normal n) sees outside the scene in direction `dir`.
     pub fn visible_towards<const PLAIN: bool>(&self, p: Vec3, n: Vec3, dir: Vec3) -> bool {
         !self.any_hit::<PLAIN>(&shadow_ray_towards(p, n, dir), f32::INFINITY)
+    }
+
+    /// The triangles that rays from `origin`, off triangle `prim`'s surface, into the
+    /// hemisphere about `n` cannot meet (`Skip::below`).
+    pub fn skip_below(&self, origin: Vec3, n: Vec3, prim: u32) -> Skip {
+        let count = (self.triangles.len() / Triangle::WORDS) as u32;
+        Skip::below(origin, n, prim, count, |i| self.triangle(i))
     }
 
     /// Triangle `i`.
@@ -980,13 +988,13 @@ pub fn cwbvh_traverse<const PLAIN: bool, N: WideNode>(
         return Hit::none(t_max);
     }
     // Front to back: a closest hit found early shortens the ray for the rest of the walk.
-    let mut walk = CwbvhWalk::new(ray, t_max, INVALID, AO_NEAR_FIRST);
+    let mut walk = CwbvhWalk::new(ray, t_max, Skip::NONE, AO_NEAR_FIRST);
     while !walk.step::<PLAIN, false, false, N>(triangles, cutouts, nodes, any) {}
     walk.hit
 }
 
-/// Nodes that the pooled AO walk (`SceneBuffers::trace_pool`) visits for `ray`, leaving
-/// triangle `leaves`, to `t_max` with children in `order`: what the GPU's time follows
+/// Nodes that the pooled AO walk (`SceneBuffers::trace_pool`) visits for `ray`, which
+/// skips the triangles of `skip`, to `t_max` with children in `order`: what the GPU's time follows
 /// (docs/PERFORMANCE.md, "Benchmark suite"); the host's pilot (`runner::ao_order`) counts it
 /// over the GPU's own nodes.
 pub fn cwbvh_ao_walk_nodes<const PLAIN: bool, N: WideNode>(
@@ -994,13 +1002,13 @@ pub fn cwbvh_ao_walk_nodes<const PLAIN: bool, N: WideNode>(
     cutouts: &Cutouts,
     nodes: &[UVec4],
     ray: &Ray,
-    (leaves, t_max): (u32, f32),
+    (skip, t_max): (Skip, f32),
     order: u32,
 ) -> u32 {
     if nodes.is_empty() {
         return 0;
     }
-    let mut walk = CwbvhWalk::new(ray, t_max, leaves, order);
+    let mut walk = CwbvhWalk::new(ray, t_max, skip, order);
     let mut visited = 0;
     loop {
         // A step visits a node while its group has interior children left (`step`).
@@ -1020,8 +1028,8 @@ struct CwbvhWalk {
     oct_inv: u32,
     /// The nearest hit so far (t = the ray's end while none).
     hit: Hit,
-    /// The triangle the ray leaves from (`RayPool::leaves`), never tested; or `INVALID`.
-    leaves: u32,
+    /// Triangles the ray cannot meet (`RayPool::ray`), never tested.
+    skip: Skip,
     /// Node groups (child base index, hit bits), one 64-bit entry each: one local-memory
     /// access per push or pop instead of two. Entries below `sp` are written before they
     /// are read: left uninitialised, as every traversal used to spend time zeroing them in
@@ -1038,14 +1046,14 @@ struct CwbvhWalk {
 }
 
 impl CwbvhWalk {
-    fn new(ray: &Ray, t_max: f32, leaves: u32, order: u32) -> Self {
+    fn new(ray: &Ray, t_max: f32, skip: Skip, order: u32) -> Self {
         let mut walk = Self {
             tester: TriangleTester::new(ray),
             origin: ray.origin,
             inv_dir: Vec3::ZERO,
             oct_inv: 0,
             hit: Hit::none(t_max),
-            leaves,
+            skip,
             stack: [MaybeUninit::uninit(); CWBVH_STACK],
             sp: 0,
             group_base: 0,
@@ -1053,21 +1061,21 @@ impl CwbvhWalk {
             tri_base: 0,
             tri_bits: 0,
         };
-        walk.restart(ray, t_max, leaves, order);
+        walk.restart(ray, t_max, skip, order);
         walk
     }
 
     /// Begin `ray` at the root (the stack's contents are left, unread), never testing
-    /// triangle `leaves`, visiting each node's children in `order` (`AO_NEAR_FIRST` or
+    /// the triangles of `skip`, visiting each node's children in `order` (`AO_NEAR_FIRST` or
     /// `AO_FAR_FIRST`).
-    fn restart(&mut self, ray: &Ray, t_max: f32, leaves: u32, order: u32) {
+    fn restart(&mut self, ray: &Ray, t_max: f32, skip: Skip, order: u32) {
         count!(TRAVERSALS);
         self.tester = TriangleTester::new(ray);
         self.origin = ray.origin;
         self.inv_dir = safe_recip(ray.dir);
         self.oct_inv = cwbvh_octant_inv(ray.dir) ^ order;
         self.hit = Hit::none(t_max);
-        self.leaves = leaves;
+        self.skip = skip;
         self.sp = 0;
         // The root is the only "interior child" of a virtual group at node 0.
         self.group_base = 0;
@@ -1079,9 +1087,10 @@ impl CwbvhWalk {
     /// (`hit` final; with `any`, the first hit found ends it). Inlined, with the node
     /// test, into the traversal loops: as a call per node the CPU kept the walk's state
     /// in memory (AO on the CPU backend 10–15% slower). `SKIPS`: the walk drops the
-    /// triangle its ray leaves (`leaves`; pooled AO rays) from the node's hits, so that it
-    /// takes neither a test nor, with `ONE`, a step of its own (the pilot's steps per AO ray:
-    /// shell-1m 12.09 → 11.62, spheres-1m 7.03 → 6.65, grass-1m 10.88 → 10.85); without
+    /// triangles its ray cannot meet (`skip`; pooled AO rays) from the node's hits, so that
+    /// they take neither a test nor, with `ONE`, a step of their own (the pilot's steps per
+    /// AO ray with the triangle it leaves dropped: shell-1m 12.09 → 11.62, spheres-1m 7.03 →
+    /// 6.65, grass-1m 10.88 → 10.85; with those below its plane too: `skip`); without
     /// it the walk keeps every triangle, with no compare for it in the loop (the compare
     /// against `INVALID` made Cornell MIS 0.8% slower on the H200). `ONE`: the step tests
     /// at most one triangle of the walk's waiting group (`tri_bits`), the node's hit
@@ -1118,11 +1127,8 @@ impl CwbvhWalk {
             tri_base = node.primitive_base();
             tri_bits = hits & TRIANGLE_HITS;
             if SKIPS {
-                // The triangle the ray leaves never takes a test, nor a step.
-                let k = self.leaves.wrapping_sub(tri_base);
-                if k < FIRST_INTERIOR_BIT {
-                    tri_bits &= !(1u32 << k);
-                }
+                // Triangles the ray cannot meet take neither a test nor a step.
+                tri_bits &= !self.skip.node_bits(tri_base);
             }
             if ONE && tri_bits != 0 {
                 if self.tri_bits == 0 {

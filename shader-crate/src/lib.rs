@@ -21,6 +21,7 @@ pub mod present;
 pub mod reservoir;
 pub mod rng;
 pub mod sampling;
+pub mod skip;
 pub mod subgroup;
 pub mod texture;
 pub mod types;

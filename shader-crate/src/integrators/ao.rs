@@ -20,19 +20,22 @@ use crate::intersect::Ray;
 use crate::math::Divisor;
 use crate::rng::{keyed_pair, Rng};
 use crate::sampling::{cosine_hemisphere, in_frame, orthonormal_basis, Strata};
+use crate::skip::Skip;
 use crate::types::{decode_unit, encode_unit, FrameParams, AO_INDEPENDENT, INVALID};
 
-/// The AO rays of one surface point: where they start, the triangle they leave, the frame
-/// about its normal that their directions are drawn in, and the key of their random
-/// numbers. Ray k's numbers are a function of (key, k) alone (`keyed_pair`), so any thread
+/// The AO rays of one surface point: where they start, the triangles they cannot meet,
+/// the frame about its normal that their directions are drawn in, and the key of their
+/// random numbers. Ray k's numbers are a function of (key, k) alone (`keyed_pair`), so any thread
 /// can make any point's ray k.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct AoRays {
     pub origin: Vec3,
-    /// The triangle the point is on (`INVALID`: none given). The rays leave it on the side
-    /// of its normal, so they cannot meet it, and traversal does not test it
-    /// (`RayPool::leaves`): every AO ray's walk passes its own triangle's leaf.
-    pub prim: u32,
+    /// The triangle the point is on, which the rays leave on the side of its normal, and
+    /// its neighbours in leaf order below that side's plane (`Skip::below`; nothing where
+    /// the triangle is not given, `INVALID`): the rays cannot meet them, and traversal does
+    /// not test them (`RayPool::ray`). Every AO ray's walk passes its own triangle's leaf,
+    /// where those neighbours are.
+    pub skip: Skip,
     /// The normal in one word (`encode_unit`), as the GPU's workgroup pool keeps it.
     pub normal: u32,
     /// Tangent, bitangent and normal (`orthonormal_basis`) of `normal`'s vector.
@@ -41,25 +44,29 @@ pub struct AoRays {
 }
 
 impl AoRays {
-    /// The rays of point `p` on triangle `prim` with normal `n`; their key is the next
-    /// number of `rng`.
-    pub fn new(p: Vec3, prim: u32, n: Vec3, rng: &mut Rng) -> Self {
-        Self::at(
+    /// The rays of point `p` on triangle `prim` of `scene` with normal `n`; their key is
+    /// the next number of `rng`.
+    pub fn new(scene: &SceneBuffers, p: Vec3, prim: u32, n: Vec3, rng: &mut Rng) -> Self {
+        let mut rays = Self::at(
             offset_ray_origin(p, n),
-            prim,
+            Skip::NONE,
             encode_unit(n),
             rng.next_u32(),
-        )
+        );
+        // Below the plane of the surface's own normal: the directions, drawn about its
+        // 16-bit encoding, stay above it too (`skip`).
+        rays.skip = scene.skip_below(rays.origin, n, prim);
+        rays
     }
 
-    /// The rays from `origin` (already off triangle `prim`'s surface) about the normal of
-    /// word `normal` (`encode_unit`), of key `key`.
-    pub fn at(origin: Vec3, prim: u32, normal: u32, key: u32) -> Self {
+    /// The rays from `origin` (already off its surface) about the normal of word `normal`
+    /// (`encode_unit`), of key `key`, which skip the triangles of `skip`.
+    pub fn at(origin: Vec3, skip: Skip, normal: u32, key: u32) -> Self {
         let n = decode_unit(normal);
         let (t, b) = orthonormal_basis(n);
         Self {
             origin,
-            prim,
+            skip,
             normal,
             frame: [t, b, n],
             key,
@@ -96,7 +103,7 @@ pub fn ambient_occlusion<const PLAIN: bool>(
         for (k, ray) in bundle[..n as usize].iter_mut().enumerate() {
             *ray = point.ray(first + k as u32, strata);
         }
-        let occluded = scene.occluded_bundle::<PLAIN>(&bundle[..n as usize], point.prim, distance);
+        let occluded = scene.occluded_bundle::<PLAIN>(&bundle[..n as usize], point.skip, distance);
         open += n - occluded.count_ones();
         first += n;
     }
@@ -140,7 +147,7 @@ pub fn ao_sample<const PLAIN: bool>(
     *rays += params.ao_rays;
     Vec3::splat(ambient_occlusion::<PLAIN>(
         scene,
-        AoRays::new(p, prim, n, rng),
+        AoRays::new(scene, p, prim, n, rng),
         params.ao_rays,
         strata(params),
         params.ao_distance,
@@ -173,13 +180,13 @@ pub const WIDE_GROUP: usize = 896;
 /// A pool's layout in workgroup memory, in 32-bit words, for a group of `g` threads: the
 /// next ray's index, the number of points with rays, those points' threads in the order
 /// they came (`thread_bits` each), each thread's count of escaped rays, and each thread's
-/// `AoRays` (origin, normal word, key, triangle). Kept small: the workgroup's memory comes
+/// `AoRays` (origin, normal word, key, skipped triangles' start and mask). Kept small: the workgroup's memory comes
 /// out of the SM's L1, which the walk's node reads live on (docs/PERFORMANCE.md, "Benchmark
 /// suite").
 const NEXT: usize = 0;
 const POINTS: usize = 1;
 const POINT_THREADS: usize = 2;
-const RAYS_WORDS: usize = 6;
+const RAYS_WORDS: usize = 7;
 /// Bits of a point's thread in the point list: a byte while the group has at most 256.
 const fn thread_bits(g: usize) -> usize {
     if g <= 256 {
@@ -254,7 +261,7 @@ impl<M: GroupMemory, const G: usize> RayPool for GroupPool<'_, M, G> {
         }
     }
 
-    fn ray(&self, index: u32) -> (Ray, u32) {
+    fn ray(&self, index: u32) -> (Ray, Skip) {
         let (k, thread) = self.point_of(index);
         let base = rays_word(G) + RAYS_WORDS * thread;
         let f = |i: usize| f32::from_bits(self.memory.load(base + i));
@@ -263,9 +270,12 @@ impl<M: GroupMemory, const G: usize> RayPool for GroupPool<'_, M, G> {
         // "Benchmark suite").
         let origin = Vec3::new(f(0), f(1), f(2));
         let (normal, key) = (self.memory.load(base + 3), self.memory.load(base + 4));
-        let prim = self.memory.load(base + 5);
-        let rays = AoRays::at(origin, prim, normal, key);
-        (rays.ray(k, self.strata), prim)
+        let skip = Skip {
+            start: self.memory.load(base + 5),
+            mask: self.memory.load(base + 6),
+        };
+        let rays = AoRays::at(origin, skip, normal, key);
+        (rays.ray(k, self.strata), skip)
     }
 
     fn escaped(&mut self, index: u32) {
@@ -291,14 +301,15 @@ pub fn group_camera<const PLAIN: bool, const G: usize, M: GroupMemory>(
     let Some((p, prim, n)) = camera_hit::<PLAIN>(scene, ray) else {
         return false;
     };
-    let rays = AoRays::new(p, prim, n, rng);
+    let rays = AoRays::new(scene, p, prim, n, rng);
     let base = rays_word(G) + RAYS_WORDS * thread;
     memory.store(base, rays.origin.x.to_bits());
     memory.store(base + 1, rays.origin.y.to_bits());
     memory.store(base + 2, rays.origin.z.to_bits());
     memory.store(base + 3, rays.normal);
     memory.store(base + 4, rays.key);
-    memory.store(base + 5, rays.prim);
+    memory.store(base + 5, rays.skip.start);
+    memory.store(base + 6, rays.skip.mask);
     // The thread into byte `slot` of the (cleared) list: adding to a zero byte sets it.
     let slot = memory.fetch_add(POINTS, 1) as usize;
     let (word, shift) = point_thread_bits::<G>(slot);
