@@ -64,7 +64,7 @@ fn main() {
         cwbvh_ao_walk_nodes::<false, CwBvhNode>(triangles, &cut, nodes, ray, end, params.ao_order)
             as u64
     };
-    // The AO rays of the grid's hits, with the triangle each leaves.
+    // The AO rays of the grid's hits, with the triangles each skips.
     let ao_rays: Vec<(Ray, Skip)> = (0..ROWS)
         .into_par_iter()
         .flat_map_iter(|row| {
@@ -84,12 +84,12 @@ fn main() {
         .collect();
     let rays = ao_rays.len() as u64;
     let sum = |f: &(dyn Fn(&Ray, Skip) -> u64 + Sync)| -> u64 {
-        ao_rays.par_iter().map(|(ray, prim)| f(ray, *prim)).sum()
+        ao_rays.par_iter().map(|(ray, skip)| f(ray, *skip)).sum()
     };
     // The walks as the GPU runs them, alone, so that the triangle counter sees only them.
     #[cfg(feature = "traversal-stats")]
     let _ = kernels::bvh::stats::take();
-    let visited = sum(&|ray, prim| walk(ray, prim, distance));
+    let visited = sum(&|ray, skip| walk(ray, skip, distance));
     #[cfg(feature = "traversal-stats")]
     let tested = Some(kernels::bvh::stats::take().2);
     #[cfg(not(feature = "traversal-stats"))]
@@ -97,11 +97,11 @@ fn main() {
     // Per ray, once: the boxes holding its origin, and whether it escapes.
     let origins: Vec<(u64, bool)> = ao_rays
         .par_iter()
-        .map(|(ray, prim)| {
+        .map(|(ray, skip)| {
             let blocked =
                 cwbvh_traverse::<false, CwBvhNode>(triangles, &cut, nodes, ray, distance, true)
                     .is_hit();
-            (walk(ray, *prim, AT_ORIGIN * distance), !blocked)
+            (walk(ray, *skip, AT_ORIGIN * distance), !blocked)
         })
         .collect();
     let in_origin_boxes: u64 = origins.iter().map(|&(n, _)| n).sum();
@@ -115,9 +115,9 @@ fn main() {
         .skip
         .iter()
         .map(|&share| {
-            sum(&|ray, prim| {
+            sum(&|ray, skip| {
                 let start = Ray::new(ray.origin + ray.dir * (share * distance), ray.dir);
-                walk(&start, prim, (1.0 - share) * distance)
+                walk(&start, skip, (1.0 - share) * distance)
             })
         })
         .collect();

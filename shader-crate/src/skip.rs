@@ -61,10 +61,10 @@ impl Skip {
         count: u32,
         triangle: impl Fn(u32) -> Triangle,
     ) -> Self {
-        let mut skip = Self::only(prim);
         if prim == INVALID {
-            return skip;
+            return Self::NONE;
         }
+        let mut skip = Self::only(prim);
         let below = |p: [f32; 3]| {
             let d = Vec3::from(p) - origin;
             d.dot(n) < -HEIGHT_ERROR * (d.abs().dot(n.abs()))

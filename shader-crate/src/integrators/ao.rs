@@ -180,9 +180,9 @@ pub const WIDE_GROUP: usize = 896;
 /// A pool's layout in workgroup memory, in 32-bit words, for a group of `g` threads: the
 /// next ray's index, the number of points with rays, those points' threads in the order
 /// they came (`thread_bits` each), each thread's count of escaped rays, and each thread's
-/// `AoRays` (origin, normal word, key, skipped triangles' start and mask). Kept small: the workgroup's memory comes
-/// out of the SM's L1, which the walk's node reads live on (docs/PERFORMANCE.md, "Benchmark
-/// suite").
+/// `AoRays` (origin, normal word, key, skipped triangles' start and mask). Kept small: the
+/// workgroup's memory comes out of the SM's L1, which the walk's node reads live on
+/// (docs/PERFORMANCE.md, "Benchmark suite").
 const NEXT: usize = 0;
 const POINTS: usize = 1;
 const POINT_THREADS: usize = 2;
