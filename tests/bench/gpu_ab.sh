@@ -7,7 +7,7 @@
 # Each line: round, workload, variant, median GPU ms per frame, the BVH build time.
 # usage: VARS="old new new:SOME_ENV=1 new@--ao-order=near" [W="ao-rocks mis-cornell ..."] \
 #        [ROUNDS=2] [DIR=.dev] bash tests/bench/gpu_ab.sh
-# A variant is NAME (runner-NAME), NAME:VAR=VALUE (that build with VAR set) or NAME@ARG
+# A variant is NAME (runner-NAME), NAME:VAR=VALUE[,VAR=VALUE...] (that build with those set) or NAME@ARG
 # (that build with one more bench argument). A workload is one of the names in args() below,
 # or KIND:SCENE (KIND ao, nee, mis or pt as below, at --bvh-quality high unless the variant
 # says otherwise, on any scene).
@@ -40,7 +40,7 @@ bench() { # variant workload
   local quality="--bvh-quality high"
   [[ ${extra[*]:-} == --bvh-quality* ]] && quality=""
   local rest=${v%%@*}
-  [[ $rest == *:* ]] && env=("${rest#*:}")
+  [[ $rest == *:* ]] && IFS=, read -ra env <<<"${rest#*:}"
   out=$(env "${env[@]}" "$DIR/runner-$b" bench --backend gpu --width 1920 --height 1080 \
     --runs 5 --warmup 3 $(args "$2") "${extra[@]}" 2>&1)
   ms=$(echo "$out" | awk '/^ms\/frame/{print $5}')
