@@ -15,12 +15,14 @@
 //! 1.52 to 1.08 on city-1m, 2.48 to 1.86 on grass-1m and 2.26 to 1.51 on shell-1m, with
 //! the same answers (docs/PERFORMANCE.md, "Triangles below the plane a ray leaves").
 //!
-//! The window is the 32 triangle slots around the point's own (`BEFORE` before it): a
+//! The window is the `WINDOW` (32) triangle slots around the point's own (`BEFORE` before it): a
 //! node's triangles are consecutive slots of up to 24 (`cwbvh_meta`), so the window holds
 //! the point's own node's, where the neighbours are, wherever its triangle sits in it.
 use crate::glam::Vec3;
 use crate::types::{Triangle, INVALID};
 
+/// Slots of the window: one bit each of `Skip::mask`.
+const WINDOW: u32 = 32;
 /// Slots of the window before the point's own triangle.
 const BEFORE: u32 = 16;
 /// A corner lies below the plane when its height above it, computed in f32, is below
@@ -70,7 +72,7 @@ impl Skip {
             d.dot(n) < -HEIGHT_ERROR * (d.abs().dot(n.abs()))
         };
         let mut k = 0;
-        while k < 32 {
+        while k < WINDOW {
             let i = skip.start.wrapping_add(k);
             if i < count {
                 let t = triangle(i);
@@ -86,7 +88,7 @@ impl Skip {
     /// Whether slot `i` is skipped.
     pub fn holds(&self, i: u32) -> bool {
         let k = i.wrapping_sub(self.start);
-        k < 32 && (self.mask >> k) & 1 != 0
+        k < WINDOW && (self.mask >> k) & 1 != 0
     }
 
     /// The skipped slots among a node's triangle bits (bit j: slot `base + j`, j < 24).
@@ -94,9 +96,9 @@ impl Skip {
     pub fn node_bits(&self, base: u32) -> u32 {
         let after = base.wrapping_sub(self.start);
         let before = self.start.wrapping_sub(base);
-        if after < 32 {
+        if after < WINDOW {
             self.mask >> after
-        } else if before < 32 {
+        } else if before < WINDOW {
             self.mask << before
         } else {
             0

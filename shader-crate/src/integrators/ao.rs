@@ -47,16 +47,11 @@ impl AoRays {
     /// The rays of point `p` on triangle `prim` of `scene` with normal `n`; their key is
     /// the next number of `rng`.
     pub fn new(scene: &SceneBuffers, p: Vec3, prim: u32, n: Vec3, rng: &mut Rng) -> Self {
-        let mut rays = Self::at(
-            offset_ray_origin(p, n),
-            Skip::NONE,
-            encode_unit(n),
-            rng.next_u32(),
-        );
+        let origin = offset_ray_origin(p, n);
         // Below the plane of the surface's own normal: the directions, drawn about its
         // 16-bit encoding, stay above it too (`skip`).
-        rays.skip = scene.skip_below(rays.origin, n, prim);
-        rays
+        let skip = scene.skip_below(origin, n, prim);
+        Self::at(origin, skip, encode_unit(n), rng.next_u32())
     }
 
     /// The rays from `origin` (already off its surface) about the normal of word `normal`
