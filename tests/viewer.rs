@@ -136,12 +136,22 @@ fn screenshot_matches_render(present: &str) {
     );
 }
 
-/// An XWD image (what `Xvfb -fbdir` keeps its screen in) as 8-bit RGB rows.
+/// The XWD header's `file_version`.
+const XWD_FILE_VERSION: usize = 7;
+
+/// An XWD image (what `Xvfb -fbdir` keeps its screen in) as 8-bit RGB rows; None while
+/// the file is not readable or its header not yet written.
 fn read_xwd(path: &Path) -> Option<(usize, usize, Vec<[u8; 3]>)> {
     let bytes = std::fs::read(path).ok()?;
     let field = |i: usize| -> Option<usize> {
         Some(u32::from_be_bytes(bytes.get(4 * i..4 * i + 4)?.try_into().ok()?) as usize)
     };
+    // A header read while Xvfb was still writing it once gave its words byte-swapped (32
+    // bits per pixel read as 2^29): until the file version reads 7 big-endian, the header
+    // is not ready, and the caller reads the file again.
+    if field(1)? != XWD_FILE_VERSION {
+        return None;
+    }
     let (header, width, height, lsb_first) = (field(0)?, field(4)?, field(5)?, field(7)? == 0);
     let (bits, row, ncolors) = (field(11)?, field(12)?, field(19)?);
     let masks = [field(14)? as u32, field(15)? as u32, field(16)? as u32];
