@@ -12,13 +12,15 @@
 //!   box its segment crosses, these among them, while a blocked one may stop first;
 //! - the nodes visited once the first share s of each ray is skipped (the walk from
 //!   origin + s·distance), for each s in `--skip`: what a per-point list of the triangles
-//!   near the origin, tested apart, could save at most.
+//!   near the origin, tested apart, could save at most;
+//! - the nodes visited and the boxes holding the origin of the points on large triangles
+//!   (a suite scene's ground) and of the rest, apart.
 //!
 //! `cargo run --release --example ao_walk_floor -- --scene shell-1m --width 1920 --height
 //! 1080 --bvh-quality high --integrator ao --spp 1 --ao-rays 64`
 use clap::Parser;
 use kernels::bvh::{cwbvh_ao_walk_nodes, cwbvh_traverse};
-use kernels::glam::UVec4;
+use kernels::glam::{UVec4, Vec3};
 use kernels::integrators::ao::strata;
 use kernels::intersect::Ray;
 use kernels::skip::Skip;
@@ -33,6 +35,9 @@ const ROWS: u32 = 54;
 const EVERY: usize = 4;
 /// The walk to this share of the AO distance visits the boxes that hold the origin.
 const AT_ORIGIN: f32 = 1e-6;
+/// A triangle of more than this share of the AO distance squared is large: the suite
+/// scenes' ground (two triangles under everything), whose points the counts give apart.
+const LARGE: f32 = 1e-3;
 
 #[derive(Parser)]
 struct Cli {
@@ -64,8 +69,14 @@ fn main() {
         cwbvh_ao_walk_nodes::<false, CwBvhNode>(triangles, &cut, nodes, ray, end, params.ao_order)
             as u64
     };
-    // The AO rays of the grid's hits, with the triangles each skips.
-    let ao_rays: Vec<(Ray, Skip)> = (0..ROWS)
+    // The AO rays of the grid's hits, with the triangles each skips and whether their point
+    // lies on a large triangle (`LARGE`: a suite scene's ground).
+    let large = |skip: Skip| {
+        let t = buffers.triangle(skip.own());
+        let (p0, p1, p2) = (Vec3::from(t.p0), Vec3::from(t.p1), Vec3::from(t.p2));
+        0.5 * (p1 - p0).cross(p2 - p0).length() > LARGE * distance * distance
+    };
+    let ao_rays: Vec<(Ray, Skip, bool)> = (0..ROWS)
         .into_par_iter()
         .flat_map_iter(|row| {
             let mut out = Vec::new();
@@ -75,7 +86,7 @@ fn main() {
                 if let Some(point) = grid_point::<false>(&buffers, nodes, &cut, &params, cell, grid)
                 {
                     for k in (0..params.ao_rays).step_by(EVERY) {
-                        out.push((point.ray(k, rays_strata), point.skip));
+                        out.push((point.ray(k, rays_strata), point.skip, large(point.skip)));
                     }
                 }
             }
@@ -84,12 +95,16 @@ fn main() {
         .collect();
     let rays = ao_rays.len() as u64;
     let sum = |f: &(dyn Fn(&Ray, Skip) -> u64 + Sync)| -> u64 {
-        ao_rays.par_iter().map(|(ray, skip)| f(ray, *skip)).sum()
+        ao_rays.par_iter().map(|(ray, skip, _)| f(ray, *skip)).sum()
     };
     // The walks as the GPU runs them, alone, so that the triangle counter sees only them.
     #[cfg(feature = "traversal-stats")]
     let _ = kernels::bvh::stats::take();
-    let visited = sum(&|ray, skip| walk(ray, skip, distance));
+    let visits: Vec<u64> = ao_rays
+        .par_iter()
+        .map(|(ray, skip, _)| walk(ray, *skip, distance))
+        .collect();
+    let visited: u64 = visits.iter().sum();
     #[cfg(feature = "traversal-stats")]
     let tested = Some(kernels::bvh::stats::take().2);
     #[cfg(not(feature = "traversal-stats"))]
@@ -97,7 +112,7 @@ fn main() {
     // Per ray, once: the boxes holding its origin, and whether it escapes.
     let origins: Vec<(u64, bool)> = ao_rays
         .par_iter()
-        .map(|(ray, skip)| {
+        .map(|(ray, skip, _)| {
             let blocked =
                 cwbvh_traverse::<false, CwBvhNode>(triangles, &cut, nodes, ray, distance, true)
                     .is_hit();
@@ -144,4 +159,20 @@ fn main() {
         print!(", first {share} skipped {:.2}", per_ray(*n));
     }
     println!();
+    for (on_large, surface) in [(true, "large triangles"), (false, "the rest")] {
+        let (mut n, mut nodes, mut boxes) = (0u64, 0u64, 0u64);
+        for ((_, _, l), (v, (o, _))) in ao_rays.iter().zip(visits.iter().zip(&origins)) {
+            if *l == on_large {
+                (n, nodes, boxes) = (n + 1, nodes + v, boxes + o);
+            }
+        }
+        let per = |x: u64| x as f64 / n.max(1) as f64;
+        println!(
+            "  points on {surface}: {:.1}% of the rays, nodes per ray {:.2}, in boxes holding \
+             the origin {:.2}",
+            100.0 * per_ray(n),
+            per(nodes),
+            per(boxes)
+        );
+    }
 }

@@ -53,6 +53,11 @@ impl Skip {
         }
     }
 
+    /// The triangle the rays leave, of a skip made by `only` or `below` with a triangle.
+    pub fn own(self) -> u32 {
+        self.start.wrapping_add(BEFORE)
+    }
+
     /// The skips of AO rays from `origin` (off triangle `prim`'s surface) into the
     /// hemisphere about `n`: `prim` and the slots of the window wholly below the plane,
     /// among the `count` triangles of `triangle(i)`.
