@@ -113,13 +113,10 @@ impl Counts {
 fn main() {
     let cli = Cli::parse();
     let args = &cli.bench;
-    let fail = |e: runner::error::Error| -> ! {
+    let (scene, params) = runner::bench::scene_and_params(args).unwrap_or_else(|e| {
         eprintln!("error: {e}");
         std::process::exit(1)
-    };
-    let mut scene = runner::scene::load(&args.scene).unwrap_or_else(|e| fail(e));
-    let params = runner::options::frame_params(&args.scene, &args.kernel, &mut scene)
-        .unwrap_or_else(|e| fail(e));
+    });
     let buffers = scene.untraced();
     let words: &[UVec4] = bytemuck::cast_slice(&scene.nodes);
     let nodes: &[CwBvhNode] = &scene.nodes;

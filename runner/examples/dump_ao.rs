@@ -20,9 +20,10 @@ struct Cli {
 fn main() {
     let cli = Cli::parse();
     let args = &cli.bench;
-    let mut scene = runner::scene::load(&args.scene).expect("scene");
-    let params =
-        runner::options::frame_params(&args.scene, &args.kernel, &mut scene).expect("params");
+    let (scene, params) = runner::bench::scene_and_params(args).unwrap_or_else(|e| {
+        eprintln!("error: {e}");
+        std::process::exit(1)
+    });
     std::fs::create_dir_all(&cli.out).unwrap();
     std::fs::write(
         cli.out.join("nodes.bin"),

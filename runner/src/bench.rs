@@ -217,6 +217,14 @@ pub fn bench(args: &BenchArgs) -> Result<BenchReport> {
     bench_scene(args, &load_scene(&args.scene)?)
 }
 
+/// The scene of `args` and its first frame's parameters, as `bench` renders them: for the
+/// diagnostics in `runner/examples`, which walk the same scene on the CPU.
+pub fn scene_and_params(args: &BenchArgs) -> Result<(Scene, FrameParams)> {
+    let mut scene = load_scene(&args.scene)?;
+    let params = frame_params(&args.scene, &args.kernel, &mut scene)?;
+    Ok((scene, params))
+}
+
 /// `bench` on a scene already loaded (the suite loads each of its scenes once for all its
 /// workloads); `frame_params` may add the built-in sky to the scene, so it works on a copy.
 fn bench_scene(args: &BenchArgs, loaded: &Scene) -> Result<BenchReport> {
