@@ -172,6 +172,10 @@ fn gamma(n: u32) -> f32 {
 
 /// Möller & Trumbore 1997, "Fast, Minimum Storage Ray/Triangle Intersection". Faster set-up,
 /// but not watertight: rays through shared edges can miss both triangles.
+// Its compares stay compares: rust-gpu made `(0.0..=1.0).contains(&b1)` a load through a
+// pointer to the range, which spirv-val rejects ("not a logical pointer"), and the
+// `intersect-moller-trumbore` kernels did not build.
+#[allow(clippy::manual_range_contains)]
 pub fn intersect_moller_trumbore(
     ray: &Ray,
     tri: &Triangle,
@@ -189,7 +193,7 @@ pub fn intersect_moller_trumbore(
     let inv_det = 1.0 / det;
     let tvec = ray.origin - p0;
     let b1 = tvec.dot(pvec) * inv_det;
-    if !(0.0..=1.0).contains(&b1) {
+    if !(b1 >= 0.0 && b1 <= 1.0) {
         return None;
     }
     let qvec = tvec.cross(e1);
