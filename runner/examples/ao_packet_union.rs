@@ -14,11 +14,12 @@
 //! `cargo run --release --example ao_packet_union -- --scene spheres-1m --width 1920
 //! --height 1080 --bvh-quality high --integrator ao --spp 1 --ao-rays 64`
 use clap::Parser;
-use kernels::bvh::cwbvh_traverse;
-use kernels::glam::{UVec4, Vec3};
+use kernels::bvh::{cwbvh_traverse, safe_recip, WideNode};
+use kernels::glam::UVec4;
 use kernels::integrators::ao::{strata, AoRays, GROUP_WIDTH, WIDE_GROUP};
 use kernels::intersect::Ray;
-use kernels::types::{cwbvh_meta, CwBvhNode};
+use kernels::types::cwbvh_meta::{FIRST_INTERIOR_BIT, TRIANGLE_HITS};
+use kernels::types::CwBvhNode;
 use rayon::prelude::*;
 use runner::ao_order::grid_point;
 
@@ -40,43 +41,30 @@ struct Cli {
     bench: runner::bench::BenchArgs,
 }
 
-/// Byte `slot` of a pair of words of a node's child planes, as the grid step it counts.
-fn plane(words: [u32; 2], slot: usize) -> f32 {
-    ((words[slot / 4] >> (8 * (slot % 4))) & 0xff) as f32
-}
-
 /// Appends the nodes whose boxes the segment of `ray` to `t_max` crosses, from the root,
-/// and the triangles of the leaf boxes it crosses.
+/// and the triangles of the leaf boxes it crosses: the GPU's node test (`WideNode::hits`),
+/// every hit child followed.
 fn crossed(nodes: &[CwBvhNode], ray: &Ray, t_max: f32, out: &mut (Vec<u32>, Vec<u32>)) {
-    let inv = Vec3::ONE / ray.dir;
+    let inv_dir = safe_recip(ray.dir);
     let mut stack = vec![0u32];
     while let Some(i) = stack.pop() {
         out.0.push(i);
         let n = &nodes[i as usize];
-        let (p, s) = (Vec3::from(n.p), n.scale());
-        let mut interior = 0;
-        for slot in 0..8 {
-            let meta = (n.child_meta[slot / 4] >> (8 * (slot % 4))) & 0xff;
-            if meta == 0 {
-                continue;
-            }
-            let corner =
-                |x, y, z| p + s * Vec3::new(plane(x, slot), plane(y, slot), plane(z, slot));
-            let lo = corner(n.child_min_x, n.child_min_y, n.child_min_z);
-            let hi = corner(n.child_max_x, n.child_max_y, n.child_max_z);
-            let (a, b) = ((lo - ray.origin) * inv, (hi - ray.origin) * inv);
-            let hit = a.min(b).max_element().max(0.0) <= a.max(b).min_element().min(t_max);
-            if cwbvh_meta::is_interior(meta) {
-                if hit {
-                    stack.push(n.child_base_idx + interior);
-                }
-                interior += 1;
-            } else if hit {
-                let first = n.primitive_base_idx + cwbvh_meta::index(meta);
-                let count = cwbvh_meta::triangle_bits(meta).count_ones();
-                out.1.extend(first..first + count);
-            }
+        // Octant 0: the interior children's bits stay in slot order.
+        let hits = n.hits(ray.origin, inv_dir, 0, t_max);
+        let interior = hits >> FIRST_INTERIOR_BIT;
+        for slot in (0..8).filter(|slot| interior >> slot & 1 != 0) {
+            // Interior children are stored in slot order: the index counts those below.
+            let below = (n.imask() & ((1 << slot) - 1)).count_ones();
+            stack.push(n.child_base() + below);
         }
+        let triangles = hits & TRIANGLE_HITS;
+        let first = n.primitive_base();
+        out.1.extend(
+            (0..24)
+                .filter(|k| triangles >> k & 1 != 0)
+                .map(|k| first + k),
+        );
     }
 }
 

@@ -20,7 +20,7 @@
 //! 1080 --bvh-quality high --integrator ao --spp 1 --ao-rays 64`
 use clap::Parser;
 use kernels::bvh::{cwbvh_ao_walk_nodes, cwbvh_traverse};
-use kernels::glam::{UVec4, Vec3};
+use kernels::glam::UVec4;
 use kernels::integrators::ao::strata;
 use kernels::intersect::Ray;
 use kernels::skip::Skip;
@@ -68,11 +68,7 @@ fn main() {
     };
     // The AO rays of the grid's hits, with the triangles each skips and whether their point
     // lies on a large triangle (`LARGE`: a suite scene's ground).
-    let large = |skip: Skip| {
-        let t = buffers.triangle(skip.own());
-        let (p0, p1, p2) = (Vec3::from(t.p0), Vec3::from(t.p1), Vec3::from(t.p2));
-        0.5 * (p1 - p0).cross(p2 - p0).length() > LARGE * distance * distance
-    };
+    let large = |skip: Skip| buffers.triangle(skip.own()).area() > LARGE * distance * distance;
     let ao_rays: Vec<(Ray, Skip, bool)> = (0..ROWS)
         .into_par_iter()
         .flat_map_iter(|row| {

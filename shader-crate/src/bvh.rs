@@ -599,7 +599,7 @@ pub fn cwbvh_octant_inv(dir: Vec3) -> u32 {
 
 /// 1/d per component, with ±2^63 where d is too small to invert: finite slopes keep the
 /// quantised slab test free of 0·∞ = NaN for axis-parallel rays.
-pub(crate) fn safe_recip(d: Vec3) -> Vec3 {
+pub fn safe_recip(d: Vec3) -> Vec3 {
     let r = |x: f32| {
         if x > 1e-18 || x < -1e-18 {
             1.0 / x
