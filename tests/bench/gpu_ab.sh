@@ -4,7 +4,8 @@
 # reversed every other round, so that a clock drop or a warm cache favours none of them.
 # Run it on the device machine from the repository root, the binaries built elsewhere as
 # $DIR/runner-NAME.xz (strip + xz), the Vulkan loader's .debs in .gl/ (device README).
-# Each line: round, workload, variant, median GPU ms per frame, the BVH build time.
+# Each line: round, workload, variant, median GPU ms per frame, the BVH build time; at the
+# end, each workload and variant's mean over the rounds.
 # usage: VARS="old new new:SOME_ENV=1 new@--ao-order=near" [W="ao-rocks mis-cornell ..."] \
 #        [ROUNDS=2] [DIR=.dev] bash tests/bench/gpu_ab.sh
 # A variant is NAME (runner-NAME), NAME:VAR=VALUE[,VAR=VALUE...] (that build with those set) or NAME@ARG
@@ -46,11 +47,18 @@ bench() { # variant workload
   ms=$(echo "$out" | awk '/^ms\/frame/{print $5}')
   # the BVH's build time after the ms, for the tables' build column
   echo "r$round $2 $v ${ms:-FAILED} $(echo "$out" | grep -o 'build [0-9.]* ms')"
+  results+=("$2 $v ${ms:-FAILED}")
   [ -z "$ms" ] && echo "$out" | tail -5
 }
 W=${W:-"ao-cornell ao-rocks ao-spheres ao-city ao-grass ao-shell mis-cornell nee-many"}
 rev=""; for v in $VARS; do rev="$v $rev"; done
+results=()
 for round in $(seq "${ROUNDS:-2}"); do
   order=$VARS; [ $((round % 2)) = 0 ] && order=$rev
   for w in $W; do for v in $order; do bench "$v" "$w"; done; done
 done
+# The means over the rounds, in the order first run: what the tables quote.
+echo "means over ${ROUNDS:-2} rounds, ms:"
+printf '%s\n' "${results[@]}" | awk '$3 != "FAILED" {
+  k = $1 " " $2; if (!(k in n)) order[++keys] = k; s[k] += $3; n[k]++ }
+  END { for (i = 1; i <= keys; i++) printf "%s %.3f\n", order[i], s[order[i]] / n[order[i]] }'
