@@ -90,7 +90,10 @@ impl WatertightRay {
 
 /// Watertight test: rays through shared edges and vertices of a closed mesh never slip
 /// between triangles, because the edge functions of both neighbours see bit-identical
-/// inputs. Returns (t, b1, b2) when t_min < t < t_max.
+/// inputs. Returns (t, b1, b2) when t_min < t < t_max. (Its edges' signs and t tested in
+/// one branch before the division, as `intersect_moller_trumbore` does, gained nothing:
+/// AO the same, MIS and NEE 1–2% slower, H100; docs/PERFORMANCE.md, "Cheaper triangle
+/// tests".)
 pub fn intersect_watertight(
     wr: &WatertightRay,
     tri: &Triangle,
@@ -192,9 +195,7 @@ fn gamma(n: u32) -> f32 {
 /// and t are compared scaled by det, its sign moved onto them, in one branch, and only a
 /// hit divides: with a branch and a division for each, as in the paper, the Cornell box's
 /// MIS took 15% longer and the many-lights NEE 8% (H100; docs/PERFORMANCE.md, "Cheaper
-/// triangle tests"). The watertight test gained nothing from the same (its
-/// edges' signs and t in one branch before the division: AO the same, MIS and NEE 1–2%
-/// slower).
+/// triangle tests").
 pub fn intersect_moller_trumbore(
     ray: &Ray,
     tri: &Triangle,
