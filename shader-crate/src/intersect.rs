@@ -164,7 +164,11 @@ pub fn intersect_watertight(
 /// computed from a buffer's length instead was folded by the NVIDIA driver: rays leaked
 /// again.) Before, the endpoints were put in one canonical order, with compares and
 /// selects; the XOR made every kernel 3–9% faster and leaks nothing in 796 M rays on the
-/// H100 (docs/PERFORMANCE.md, "Benchmark suite").
+/// H100 (docs/PERFORMANCE.md, "Benchmark suite"). A multiply by a run-time 1.0 (made from
+/// the same bit) in place of the XOR, moving the six operations from the GPU's busy integer
+/// pipe to its float pipe, was 0.4–0.8% faster on every kernel but leaked a ray on the H100
+/// (docs/PERFORMANCE.md, "Cheaper triangle tests"): the driver rewrites float arithmetic,
+/// and only an integer operation keeps it out.
 #[inline(always)]
 fn edge_function(px: f32, py: f32, qx: f32, qy: f32, zero: u32) -> f32 {
     let rounded = |p: f32| f32::from_bits(p.to_bits() ^ zero);
