@@ -1,6 +1,7 @@
 //! Scene queries: closest hit and any hit (shadow/AO rays) by brute force, over a binary
 //! BVH, or over a compressed 8-wide BVH (CWBVH). `SceneBuffers` uses the traversal picked by cargo
 //! feature; every variant answers the same question, and the tests hold them to it.
+use crate::bits::{first_bit_high, shl};
 use crate::bsdf::{Bsdf, BSDF_CONDUCTOR, BSDF_DIELECTRIC};
 use crate::glam::{UVec2, UVec4, Vec2, Vec3, Vec4};
 use crate::intersect::{intersect_aabb, Hit, Ray, TriangleTester};
@@ -16,6 +17,8 @@ use crate::types::{
     SHADING_BITANGENT_FLIPPED, SHADING_COLOURS, SHADING_NORMALS, SHADING_TANGENTS, SHADING_UVS,
 };
 use core::mem::MaybeUninit;
+#[cfg(target_arch = "spirv")]
+use spirv_std::arch::IndexUnchecked;
 
 /// Rays to trace for `SceneBuffers::trace_pool`, handed out one at a time by index.
 pub trait RayPool {
@@ -584,11 +587,6 @@ pub fn bvh2_traverse<const PLAIN: bool>(
     hit
 }
 
-/// Index of the highest set bit (x != 0).
-fn first_bit_high(x: u32) -> u32 {
-    31 - x.leading_zeros()
-}
-
 /// 7 − the ray's octant, in the bit order obvhs assigns child slots by (x: bit 2, y: bit 1,
 /// z: bit 0). Slot XOR this is the child's traversal priority: popping the highest first
 /// visits the children front to back.
@@ -1110,11 +1108,11 @@ impl CwbvhWalk {
         let mut tri_bits = 0u32;
         if self.group_bits & INTERIOR_HITS != 0 {
             let slot_bit = first_bit_high(self.group_bits);
-            self.group_bits &= !(1u32 << slot_bit);
+            self.group_bits &= !shl(1, slot_bit);
             // Interior children are stored contiguously in slot order: the node's index is
             // the number of interior siblings (imask, the group's low byte) in lower slots.
             let slot = (slot_bit - FIRST_INTERIOR_BIT) ^ self.oct_inv;
-            let relative = (self.group_bits & 0xff & !(0xffff_ffffu32 << slot)).count_ones();
+            let relative = (self.group_bits & 0xff & !shl(u32::MAX, slot)).count_ones();
             let child = self.group_base + relative;
             if self.group_bits & INTERIOR_HITS != 0 && self.sp < CWBVH_STACK {
                 self.push(self.group_base, self.group_bits);
@@ -1143,14 +1141,14 @@ impl CwbvhWalk {
         }
         if ONE && self.tri_bits != 0 {
             let k = first_bit_high(self.tri_bits);
-            self.tri_bits &= !(1u32 << k);
+            self.tri_bits &= !shl(1, k);
             if self.test::<PLAIN>(triangles, cutouts, self.tri_base + k, any) {
                 return true;
             }
         }
         while tri_bits != 0 {
             let k = first_bit_high(tri_bits);
-            tri_bits &= !(1u32 << k);
+            tri_bits &= !shl(1, k);
             if self.test::<PLAIN>(triangles, cutouts, tri_base + k, any) {
                 return true;
             }
@@ -1159,8 +1157,7 @@ impl CwbvhWalk {
             if self.sp == 0 {
                 return !ONE || self.tri_bits == 0;
             }
-            // SAFETY: entry `sp - 1` was pushed (written) before `sp` passed it.
-            let entry = unsafe { self.stack[self.sp - 1].assume_init() };
+            let entry = self.top();
             if !ONE || entry.y & INTERIOR_HITS != 0 {
                 self.sp -= 1;
                 (self.group_base, self.group_bits) = (entry.x, entry.y);
@@ -1173,10 +1170,39 @@ impl CwbvhWalk {
         false
     }
 
+    /// Push a group (sp < `CWBVH_STACK`: every caller checks). In SPIR-V without the
+    /// bounds check, as [`Self::top`].
     #[inline(always)]
     fn push(&mut self, base: u32, bits: u32) {
-        self.stack[self.sp] = MaybeUninit::new(UVec2::new(base, bits));
+        let entry = MaybeUninit::new(UVec2::new(base, bits));
+        #[cfg(target_arch = "spirv")]
+        // SAFETY: sp < CWBVH_STACK, the stack's length, where every caller pushes.
+        unsafe {
+            *self.stack.index_unchecked_mut(self.sp) = entry;
+        }
+        #[cfg(not(target_arch = "spirv"))]
+        {
+            self.stack[self.sp] = entry;
+        }
         self.sp += 1;
+    }
+
+    /// The top entry (sp > 0). rust-gpu turns a failed bounds check (any panic) into a
+    /// return from the kernel, which spirv-opt's single-exit rewrite makes a flag tested
+    /// throughout the loops around it; `push` keeps sp within the stack, so the GPU's walk
+    /// goes without. (A build whose panics were all undefined behaviour instead, rust-gpu's
+    /// unsound `--abort-strategy=unreachable`, had every AO scene 5–6% faster on the H100:
+    /// docs/PERFORMANCE.md, "Panics in the walk's loop".)
+    #[inline(always)]
+    fn top(&self) -> UVec2 {
+        // SAFETY: 0 < sp ≤ CWBVH_STACK (`push` checks), and entry `sp - 1` was pushed
+        // (written) before `sp` passed it.
+        unsafe {
+            #[cfg(target_arch = "spirv")]
+            return self.stack.index_unchecked(self.sp - 1).assume_init();
+            #[cfg(not(target_arch = "spirv"))]
+            return self.stack[self.sp - 1].assume_init();
+        }
     }
 
     /// Test triangle `i`; true when `any` and it was hit (the walk is over).

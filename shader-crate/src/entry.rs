@@ -10,7 +10,7 @@ use crate::integrators::{ao, path, restir, PixelResult};
 use crate::present::{display_colour, fullscreen_triangle, PresentParams};
 use crate::reservoir::Reservoir;
 use crate::types::{FrameParams, GBufferTexel, Light, Material, TextureInfo, TriangleShading};
-use spirv_std::arch::{atomic_i_add, workgroup_memory_barrier_with_group_sync};
+use spirv_std::arch::{atomic_i_add, workgroup_memory_barrier_with_group_sync, IndexUnchecked};
 use spirv_std::memory::{Scope, Semantics};
 use spirv_std::spirv;
 
@@ -110,21 +110,28 @@ macro_rules! image_kernel {
 /// An AO workgroup's pool (`ao::GroupMemory`) in workgroup memory. (Implemented for the
 /// array itself: a struct holding the pointer would be a variable of pointer type, which
 /// SPIR-V's logical addressing forbids.)
+///
+/// Without bounds checks: the pool's words are computed from its layout, inside it by
+/// construction (`ao::group_words`; `tests/gpu_cpu.rs` runs the same indices on the CPU,
+/// checked), and a failed check is a return from the kernel inside the AO walk's loop
+/// (see `CwbvhWalk::top` in `bvh`).
 impl<const N: usize> ao::GroupMemory for [u32; N] {
     fn load(&self, word: usize) -> u32 {
-        self[word]
+        // SAFETY: word < N (above).
+        unsafe { *self.index_unchecked(word) }
     }
 
     fn store(&mut self, word: usize, value: u32) {
-        self[word] = value;
+        // SAFETY: word < N (above).
+        unsafe { *self.index_unchecked_mut(word) = value }
     }
 
     fn fetch_add(&mut self, word: usize, value: u32) -> u32 {
         // Relaxed: what a thread reads of the others' words it reads after a barrier.
-        // SAFETY: a workgroup word, in bounds (indexed above).
+        // SAFETY: word < N (above).
         unsafe {
             atomic_i_add::<u32, { Scope::Workgroup as u32 }, { Semantics::NONE.bits() }>(
-                &mut self[word],
+                self.index_unchecked_mut(word),
                 value,
             )
         }

@@ -7,6 +7,7 @@
 #![deny(warnings)]
 
 pub mod bindings;
+pub mod bits;
 pub mod bsdf;
 #[cfg(not(target_arch = "spirv"))]
 pub mod bundle;

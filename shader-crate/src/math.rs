@@ -94,7 +94,10 @@ impl Divisor {
         let q = if n < FAST_DIVIDENDS {
             ((n as f32 + 0.5) * self.inv) as u32
         } else {
-            n / self.d
+            // d > 0 (`new`): without the division-by-zero check of `/`, a panic that
+            // rust-gpu makes a return from the kernel inside the AO walk's loop (see
+            // `bvh::CwbvhWalk::top`).
+            n.checked_div(self.d).unwrap_or(0)
         };
         (q, n - q * self.d)
     }

@@ -2,11 +2,13 @@
 //! (pixel, frame, sample, seed), and the n-th draw from it is "dimension" n. Integer-only,
 //! so the CPU and the GPU draw bit-identical numbers.
 
+use crate::bits::shr;
+
 /// PCG-RXS-M-XS 32-bit output permutation of one LCG step (Jarzynski & Olano 2020,
 /// "Hash Functions for GPU Rendering": the recommended 1D hash).
 pub fn pcg_hash(input: u32) -> u32 {
     let state = input.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
-    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
+    let word = (shr(state, (state >> 28) + 4) ^ state).wrapping_mul(277_803_737);
     (word >> 22) ^ word
 }
 
@@ -51,7 +53,7 @@ impl Rng {
             .wrapping_mul(747_796_405)
             .wrapping_add(2_891_336_453);
         let s = self.state;
-        let word = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277_803_737);
+        let word = (shr(s, (s >> 28) + 4) ^ s).wrapping_mul(277_803_737);
         (word >> 22) ^ word
     }
 

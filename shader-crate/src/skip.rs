@@ -18,6 +18,7 @@
 //! The window is the `WINDOW` (32) triangle slots around the point's own (`BEFORE` before it): a
 //! node's triangles are consecutive slots of up to 24 (`cwbvh_meta`), so the window holds
 //! the point's own node's, where the neighbours are, wherever its triangle sits in it.
+use crate::bits::{shl, shr};
 use crate::glam::Vec3;
 use crate::types::{Triangle, INVALID};
 
@@ -102,9 +103,9 @@ impl Skip {
         let after = base.wrapping_sub(self.start);
         let before = self.start.wrapping_sub(base);
         if after < WINDOW {
-            self.mask >> after
+            shr(self.mask, after)
         } else if before < WINDOW {
-            self.mask << before
+            shl(self.mask, before)
         } else {
             0
         }

@@ -9,6 +9,7 @@
 //! its neighbours instead of idling while its warp finishes theirs. Each ray is a pure
 //! function of (pixel, sample, ray index) and each one's answer does not depend on how it
 //! is traced, so both give the same pixels.
+use crate::bits::{shl, shr};
 #[cfg(not(target_arch = "spirv"))]
 use crate::bundle::BUNDLE_RAYS;
 use crate::bvh::{offset_ray_origin, surface_hit, RayPool, SceneBuffers};
@@ -216,7 +217,8 @@ fn point_thread_bits<const G: usize>(slot: usize) -> (usize, u32) {
 
 /// A workgroup's shared memory: loads and stores of words, an atomic add, and a barrier
 /// that every thread of the group must reach (workgroup memory on the GPU; in tests,
-/// plain words with the phases run in order).
+/// plain words with the phases run in order). Every `word` lies in the pool's layout
+/// (`group_words`): the GPU's memory does not check it.
 pub trait GroupMemory {
     fn load(&self, word: usize) -> u32;
     fn store(&mut self, word: usize, value: u32);
@@ -242,7 +244,7 @@ impl<M: GroupMemory, const G: usize> GroupPool<'_, M, G> {
         let (k, slot) = self.points.div_rem(index);
         let (word, shift) = point_thread_bits::<G>(slot as usize);
         let mask = (1u32 << thread_bits(G)) - 1;
-        (k, ((self.memory.load(word) >> shift) & mask) as usize)
+        (k, (shr(self.memory.load(word), shift) & mask) as usize)
     }
 }
 
@@ -308,7 +310,7 @@ pub fn group_camera<const PLAIN: bool, const G: usize, M: GroupMemory>(
     // The thread into byte `slot` of the (cleared) list: adding to a zero byte sets it.
     let slot = memory.fetch_add(POINTS, 1) as usize;
     let (word, shift) = point_thread_bits::<G>(slot);
-    memory.fetch_add(word, (thread as u32) << shift);
+    memory.fetch_add(word, shl(thread as u32, shift));
     true
 }
 
