@@ -7,7 +7,16 @@ use crate::bits::shr;
 /// PCG-RXS-M-XS 32-bit output permutation of one LCG step (Jarzynski & Olano 2020,
 /// "Hash Functions for GPU Rendering": the recommended 1D hash).
 pub fn pcg_hash(input: u32) -> u32 {
-    let state = input.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+    pcg_output(lcg_step(input))
+}
+
+/// One step of PCG's 32-bit LCG.
+fn lcg_step(state: u32) -> u32 {
+    state.wrapping_mul(747_796_405).wrapping_add(2_891_336_453)
+}
+
+/// PCG's RXS-M-XS output permutation of an LCG state (the shift below 32: `bits::shr`).
+fn pcg_output(state: u32) -> u32 {
     let word = (shr(state, (state >> 28) + 4) ^ state).wrapping_mul(277_803_737);
     (word >> 22) ^ word
 }
@@ -48,13 +57,8 @@ impl Rng {
 
     pub fn next_u32(&mut self) -> u32 {
         // PCG: advance the LCG, output the permuted state.
-        self.state = self
-            .state
-            .wrapping_mul(747_796_405)
-            .wrapping_add(2_891_336_453);
-        let s = self.state;
-        let word = (shr(s, (s >> 28) + 4) ^ s).wrapping_mul(277_803_737);
-        (word >> 22) ^ word
+        self.state = lcg_step(self.state);
+        pcg_output(self.state)
     }
 
     /// Uniform in [0, 1): the top 24 bits, exactly representable in f32.
