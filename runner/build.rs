@@ -1,7 +1,7 @@
 //! Compiles `shader-crate` to SPIR-V with rust-gpu and exposes the module path as
 //! `env!("kernels.spv")`. The runner's cargo features that select kernel variants are
 //! forwarded to the shader crate, so the GPU and the CPU backend run the same variant.
-use spirv_builder::{Capability, SpirvBuilder, SpirvMetadata};
+use spirv_builder::{Capability, ShaderPanicStrategy, SpirvBuilder, SpirvMetadata};
 
 /// Runner features that are really shader-crate features (see runner/Cargo.toml).
 const FORWARDED_FEATURES: &[&str] = &[
@@ -32,6 +32,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // Subgroup votes (`shader_crate::subgroup`): every Vulkan GPU we target has them.
         .capability(Capability::GroupNonUniform)
         .capability(Capability::GroupNonUniformBallot);
+    // `RT_SHADER_PANICS=report`: each panic that survives optimisation prints its source
+    // line (debugPrintf) before returning from the kernel, so the SPIR-V holds those lines
+    // as strings: `tests/bench/panic_sites.sh` lists them. Every panic costs a kernel its
+    // loops' early-exit flags (docs/PERFORMANCE.md, "Panics in the walk's loop").
+    println!("cargo:rerun-if-env-changed=RT_SHADER_PANICS");
+    if std::env::var("RT_SHADER_PANICS").as_deref() == Ok("report") {
+        builder = builder.shader_panic_strategy(ShaderPanicStrategy::DebugPrintfThenExit {
+            print_inputs: false,
+            print_backtrace: false,
+        });
+    }
     builder.build_script.defaults = true;
     builder.build_script.env_shader_spv_path = Some(true);
     builder.build()?;
