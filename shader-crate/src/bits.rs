@@ -9,20 +9,7 @@
 pub fn first_bit_high(x: u32) -> u32 {
     debug_assert!(x != 0);
     #[cfg(target_arch = "spirv")]
-    {
-        let mut result = 0u32;
-        // SAFETY: one integer instruction on `x`, its result stored to a local.
-        unsafe {
-            core::arch::asm!(
-                "%glsl = OpExtInstImport \"GLSL.std.450\"",
-                "%result = OpExtInst typeof*{result} %glsl 75 {x}", // FindUMsb
-                "OpStore {result} %result",
-                x = in(reg) x,
-                result = in(reg) &mut result,
-            );
-        }
-        result
-    }
+    return crate::math::glsl!(u32, "75", x); // FindUMsb
     #[cfg(not(target_arch = "spirv"))]
     {
         31 - x.leading_zeros()

@@ -12,9 +12,10 @@ use crate::skip::Skip;
 use crate::texture::sample_bilinear;
 use crate::types::cwbvh_meta::{FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
 use crate::types::{
-    Bvh2Node, CwBvhNode, CwBvhPlanes, CwBvhSlotNode, GBufferTexel, Light, Material, TextureInfo,
-    Triangle, TriangleShading, AO_NEAR_FIRST, INVALID, METAL_THRESHOLD, NORMAL_MAP_HEIGHT,
-    SHADING_BITANGENT_FLIPPED, SHADING_COLOURS, SHADING_NORMALS, SHADING_TANGENTS, SHADING_UVS,
+    load, Bvh2Node, CwBvhNode, CwBvhPlanes, CwBvhSlotNode, GBufferTexel, Light, Material,
+    TextureInfo, Triangle, TriangleShading, AO_NEAR_FIRST, INVALID, METAL_THRESHOLD,
+    NORMAL_MAP_HEIGHT, SHADING_BITANGENT_FLIPPED, SHADING_COLOURS, SHADING_NORMALS,
+    SHADING_TANGENTS, SHADING_UVS,
 };
 use core::mem::MaybeUninit;
 #[cfg(target_arch = "spirv")]
@@ -167,8 +168,8 @@ impl Cutouts<'_> {
         if !tri.alpha_tested() {
             return true;
         }
-        let mask = self.materials[tri.material as usize].opacity_texture;
-        let a = self.shading[tri.shading_index() as usize];
+        let mask = load(self.materials, tri.material as usize).opacity_texture;
+        let a = load(self.shading, tri.shading_index() as usize);
         let alpha = sample_bilinear(self.textures, self.texels, mask, a.uv_at(b1, b2)).w;
         if tri.alpha_blended() {
             alpha > coverage_threshold(tri, b1, b2)
@@ -357,7 +358,7 @@ impl<'a> SceneBuffers<'a> {
     }
 
     pub fn material_of(&self, prim: u32) -> Material {
-        self.materials[self.triangle(prim).material as usize]
+        load(self.materials, self.triangle(prim).material as usize)
     }
 
     /// The BSDF at a surface point.
@@ -404,11 +405,11 @@ impl<'a> SceneBuffers<'a> {
     /// material's emission, times its emission texture where it has one and texture
     /// coordinates.
     pub fn emission_at(&self, tri: &Triangle, b1: f32, b2: f32) -> Vec3 {
-        let m = self.materials[tri.material as usize];
+        let m = load(self.materials, tri.material as usize);
         if m.emission_texture == INVALID || tri.shading_index() == INVALID {
             return m.emission();
         }
-        let uv = self.shading[tri.shading_index() as usize].uv_at(b1, b2);
+        let uv = load(self.shading, tri.shading_index() as usize).uv_at(b1, b2);
         m.emission()
             * sample_bilinear(self.textures, self.texels, m.emission_texture, uv).truncate()
     }
@@ -1285,7 +1286,7 @@ pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
     let n = if front_face { ng } else { -ng };
     let mut s = SurfaceHit::flat(tri.point(hit.b1, hit.b2), n, front_face, hit.prim);
     if tri.shading_index() != INVALID {
-        let a = scene.shading[tri.shading_index() as usize];
+        let a = load(scene.shading, tri.shading_index() as usize);
         let (b1, b2) = (hit.b1, hit.b2);
         let b0 = 1.0 - b1 - b2;
         // The file's normal at the point (interpolated, or the face's), as authored: a
@@ -1301,7 +1302,7 @@ pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
         let mut shading = base;
         if a.flags & SHADING_UVS != 0 {
             s.uv = a.uv_at(b1, b2);
-            let m = scene.materials[tri.material as usize];
+            let m = load(scene.materials, tri.material as usize);
             if m.normal_texture != INVALID {
                 let texel = sample_bilinear(scene.textures, scene.texels, m.normal_texture, s.uv);
                 shading = if m.normal_map_kind == NORMAL_MAP_HEIGHT {
@@ -1330,7 +1331,7 @@ pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
 /// The slope (∂h/∂u, ∂h/∂v) of height map `texture` at `uv`, where its value is `here`:
 /// differences one texel apart.
 fn height_slope(scene: &SceneBuffers, texture: u32, uv: Vec2, here: f32) -> Vec2 {
-    let info = scene.textures[texture as usize];
+    let info = load(scene.textures, texture as usize);
     let step = Vec2::new(1.0 / info.width as f32, 1.0 / info.height as f32);
     let height = |at: Vec2| sample_bilinear(scene.textures, scene.texels, texture, at).x;
     Vec2::new(

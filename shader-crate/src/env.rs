@@ -11,7 +11,7 @@ use crate::bvh::SceneBuffers;
 use crate::glam::{Vec2, Vec3};
 use crate::math::{vec3, PI};
 use crate::texture::sample_bilinear;
-use crate::types::{FrameParams, ENV_UP_Z, INVALID};
+use crate::types::{load, FrameParams, ENV_UP_Z, INVALID};
 
 /// Texture coordinates of direction `dir` (unit) in an equirectangular map whose up axis is
 /// +y (or +z) and whose centre column faces -z (or +y), turned by `rotation` radians about
@@ -45,7 +45,7 @@ fn search(cdf: &[f32], start: usize, n: u32, u: f32) -> u32 {
     let (mut lo, mut hi) = (0u32, n);
     while hi - lo > 1 {
         let mid = (lo + hi) / 2;
-        if cdf[start + mid as usize] <= u {
+        if load(cdf, start + mid as usize) <= u {
             lo = mid;
         } else {
             hi = mid;
@@ -60,14 +60,14 @@ pub fn sample_env(scene: &SceneBuffers, params: &FrameParams, u1: f32, u2: f32) 
     if params.env_texture == INVALID || scene.env_distribution.is_empty() {
         return (Vec3::Z, 0.0);
     }
-    let info = scene.textures[params.env_texture as usize];
+    let info = load(scene.textures, params.env_texture as usize);
     let (w, h) = (info.width, info.height);
     let d = scene.env_distribution;
     let y = search(d, 0, h, u1);
-    let (m0, m1) = (d[y as usize], d[y as usize + 1]);
+    let (m0, m1) = (load(d, y as usize), load(d, y as usize + 1));
     let row = (h + 1 + y * (w + 1)) as usize;
     let x = search(d, row, w, u2);
-    let (c0, c1) = (d[row + x as usize], d[row + x as usize + 1]);
+    let (c0, c1) = (load(d, row + x as usize), load(d, row + x as usize + 1));
     let (p_row, p_col) = (m1 - m0, c1 - c0);
     if p_row <= 0.0 || p_col <= 0.0 {
         return (Vec3::Z, 0.0);
@@ -95,16 +95,16 @@ pub fn env_pdf(scene: &SceneBuffers, params: &FrameParams, dir: Vec3) -> f32 {
     if params.env_texture == INVALID || scene.env_distribution.is_empty() {
         return 0.0;
     }
-    let info = scene.textures[params.env_texture as usize];
+    let info = load(scene.textures, params.env_texture as usize);
     let (w, h) = (info.width, info.height);
     let uv = equirect_uv(dir, params.env_up == ENV_UP_Z, params.env_rotation);
     let u = uv.x - uv.x.floor();
     let x = ((u * w as f32) as u32).min(w - 1);
     let y = (((1.0 - uv.y) * h as f32) as u32).min(h - 1);
     let d = scene.env_distribution;
-    let p_row = d[y as usize + 1] - d[y as usize];
+    let p_row = load(d, y as usize + 1) - load(d, y as usize);
     let row = (h + 1 + y * (w + 1)) as usize;
-    let p_col = d[row + x as usize + 1] - d[row + x as usize];
+    let p_col = load(d, row + x as usize + 1) - load(d, row + x as usize);
     let up = if params.env_up == ENV_UP_Z {
         dir.z
     } else {

@@ -4,7 +4,7 @@ use crate::bvh::SceneBuffers;
 use crate::glam::Vec3;
 use crate::rng::Rng;
 use crate::sampling::uniform_triangle;
-use crate::types::{Light, LIGHT_SAMPLING_UNIFORM};
+use crate::types::{load, Light, LIGHT_SAMPLING_UNIFORM};
 
 /// A point on an emitter, with everything the estimators need.
 #[derive(Copy, Clone, Debug)]
@@ -33,7 +33,7 @@ pub fn select_light(lights: &[Light], mode: u32, u_slot: u32, u_coin: f32) -> u3
         return i;
     }
     // Alias method: one table lookup, O(1) whatever the number of lights.
-    let entry = lights[i as usize];
+    let entry = load(lights, i as usize);
     if u_coin < entry.threshold {
         i
     } else {
@@ -46,7 +46,7 @@ pub fn selection_pdf(lights: &[Light], mode: u32, index: u32) -> f32 {
     if mode == LIGHT_SAMPLING_UNIFORM {
         1.0 / lights.len() as f32
     } else {
-        lights[index as usize].pdf
+        load(lights, index as usize).pdf
     }
 }
 
@@ -59,7 +59,7 @@ pub fn sample_light(scene: &SceneBuffers, mode: u32, rng: &mut Rng) -> LightSamp
 /// A uniform point on light `index` of the table, chosen by `select_light` (two draws
 /// from `rng`).
 pub fn sample_on_light(scene: &SceneBuffers, mode: u32, index: u32, rng: &mut Rng) -> LightSample {
-    let triangle = scene.lights[index as usize].triangle;
+    let triangle = load(scene.lights, index as usize).triangle;
     let tri = scene.triangle(triangle);
     let (b1, b2) = uniform_triangle(rng.next_f32(), rng.next_f32());
     let cross = tri.cross();

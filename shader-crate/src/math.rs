@@ -24,7 +24,7 @@ pub fn sin_cos(x: f32) -> (f32, f32) {
 #[inline(always)]
 pub fn max(a: f32, b: f32) -> f32 {
     #[cfg(target_arch = "spirv")]
-    return glsl_binary!(a, b, "80"); // NMax
+    return glsl!(f32, "80", a, b); // NMax
     #[cfg(not(target_arch = "spirv"))]
     a.max(b)
 }
@@ -33,24 +33,25 @@ pub fn max(a: f32, b: f32) -> f32 {
 #[inline(always)]
 pub fn min(a: f32, b: f32) -> f32 {
     #[cfg(target_arch = "spirv")]
-    return glsl_binary!(a, b, "79"); // NMin
+    return glsl!(f32, "79", a, b); // NMin
     #[cfg(not(target_arch = "spirv"))]
     a.min(b)
 }
 
-/// GLSL.std.450 instruction number `op` of two floats.
+/// GLSL.std.450 instruction number `op` on the variables given, its result a `ty`: one
+/// instruction where rust-gpu would write the Rust function as several (`max`, `min`,
+/// `bits::first_bit_high`).
 #[cfg(target_arch = "spirv")]
-macro_rules! glsl_binary {
-    ($a:expr, $b:expr, $op:literal) => {{
-        let mut result = 0.0f32;
-        // SAFETY: one arithmetic instruction on two floats, its result stored to a local.
+macro_rules! glsl {
+    ($ty:ty, $op:literal, $($x:ident),+) => {{
+        let mut result = <$ty>::default();
+        // SAFETY: one arithmetic instruction on the operands, its result stored to a local.
         unsafe {
             core::arch::asm!(
                 "%glsl = OpExtInstImport \"GLSL.std.450\"",
-                concat!("%result = OpExtInst typeof*{result} %glsl ", $op, " {a} {b}"),
+                concat!("%result = OpExtInst typeof*{result} %glsl ", $op $(, " {", stringify!($x), "}")+),
                 "OpStore {result} %result",
-                a = in(reg) $a,
-                b = in(reg) $b,
+                $($x = in(reg) $x,)+
                 result = in(reg) &mut result,
             );
         }
@@ -58,7 +59,7 @@ macro_rules! glsl_binary {
     }};
 }
 #[cfg(target_arch = "spirv")]
-use glsl_binary;
+pub(crate) use glsl;
 
 /// Division of whole numbers below `FAST_DIVIDENDS` by a fixed divisor through a float
 /// reciprocal: ⌊(n + ½) · (1/d)⌋ is ⌊n / d⌋ exactly there, as (n + ½)/d lies at least ½/d

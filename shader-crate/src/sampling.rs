@@ -104,7 +104,9 @@ impl Strata {
         while (rows + 1) * (rows + 1) <= count {
             rows += 1;
         }
-        let columns = count / rows;
+        // rows ≥ 1: `checked_div` is `/` without the panic (`types::load` says what one
+        // costs on the GPU).
+        let columns = count.checked_div(rows).unwrap_or(0);
         Self {
             rows,
             columns,

@@ -5,7 +5,7 @@
 use spirv_std::num_traits::Float;
 
 use crate::glam::{Vec2, Vec4};
-use crate::types::{TextureInfo, TEXTURE_LINEAR8, TEXTURE_RGBE};
+use crate::types::{load, TextureInfo, TEXTURE_LINEAR8, TEXTURE_RGBE};
 
 /// sRGB transfer function → linear (IEC 61966-2-1).
 pub fn srgb_to_linear(c: f32) -> f32 {
@@ -35,7 +35,7 @@ pub fn rgbe_to_linear(w: u32) -> Vec4 {
 
 /// Texel (x, y) of a texture, decoded: linear RGB and alpha.
 fn texel(texels: &[u32], info: &TextureInfo, x: u32, y: u32) -> Vec4 {
-    let w = texels[(info.offset + y * info.width + x) as usize];
+    let w = load(texels, (info.offset + y * info.width + x) as usize);
     if info.format == TEXTURE_RGBE {
         return rgbe_to_linear(w);
     }
@@ -54,7 +54,9 @@ fn texel(texels: &[u32], info: &TextureInfo, x: u32, y: u32) -> Vec4 {
 /// `i` wrapped into 0..n (texture repeat), for any integer `i`.
 fn wrap(i: i32, n: u32) -> u32 {
     let n = n as i32;
-    let r = i % n;
+    // `checked_rem` where `%` would be a panic on the GPU (`types::load` says what that
+    // costs): n > 0 here, so it is `%`.
+    let r = i.checked_rem(n).unwrap_or(0);
     (if r < 0 { r + n } else { r }) as u32
 }
 
@@ -62,7 +64,7 @@ fn wrap(i: i32, n: u32) -> u32 {
 /// bottom row of the image (the OBJ and OpenGL convention), texel centres at half
 /// integers. Filtering happens on linear values.
 pub fn sample_bilinear(textures: &[TextureInfo], texels: &[u32], index: u32, uv: Vec2) -> Vec4 {
-    let info = textures[index as usize];
+    let info = load(textures, index as usize);
     if info.width == 0 || info.height == 0 {
         return Vec4::ONE;
     }

@@ -55,6 +55,24 @@ pub fn buffer_read(words: &[UVec4], k: usize, n: usize) -> usize {
     }
 }
 
+/// Item `i` of a buffer the host built, at an index that the scene's own data gives (a
+/// triangle's material or shading record, a light's triangle, a texel, a ReSTIR
+/// neighbour). On the GPU, clamped into the buffer and read without a bounds check: a
+/// checked index is a panic, which rust-gpu writes as a return from the kernel, and
+/// spirv-opt as a flag tested on the way out of every loop around it — 1–6% of a kernel
+/// (docs/PERFORMANCE.md, "Panics in the walk's loop"). The loaders keep every such index
+/// inside its buffer, so the clamp never acts on a scene the host built, and the host
+/// binds no buffer empty (one zeroed element at least). The CPU indexes as usual, and
+/// panics on an index out of range.
+#[inline(always)]
+pub fn load<T: Copy>(items: &[T], i: usize) -> T {
+    // SAFETY: the index is clamped below the buffer's length, which is at least 1.
+    #[cfg(target_arch = "spirv")]
+    return unsafe { *items.get_unchecked(i.min(items.len().max(1) - 1)) };
+    #[cfg(not(target_arch = "spirv"))]
+    items[i]
+}
+
 /// Word `k` of a read that [`buffer_read`] placed.
 #[inline(always)]
 pub fn buffer_word(words: &[UVec4], k: usize) -> UVec4 {

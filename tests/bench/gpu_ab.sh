@@ -29,6 +29,7 @@ args() { case $1 in
   ao-cornell) echo "--integrator ao --spp 1 --ao-rays 64 --scene cornell-box" ;;
   mis-cornell) echo "--integrator mis --max-depth 8 --spp 1 --bvh-splits 0 --scene cornell-box" ;;
   nee-many) echo "--integrator nee --max-depth 2 --spp 1 --bvh-splits 0 --scene many-lights" ;;
+  restir-many) echo "--integrator restir --max-depth 2 --spp 1 --bvh-splits 0 --scene many-lights" ;;
   # KIND-NAME: KIND:NAME-1m, a suite scene
   ao-* | nee-* | pt-*) args "${1%%-*}:${1#*-}-1m" ;;
   *) echo "unknown workload $1" >&2; exit 2 ;;

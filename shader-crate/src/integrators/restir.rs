@@ -48,7 +48,7 @@ use crate::math::{sin_cos, sqrt, vec3, PI};
 use crate::reservoir::Reservoir;
 use crate::rng::{pcg_hash, Rng};
 use crate::types::{
-    Camera, FrameParams, GBufferTexel, INVALID, RESTIR_HISTORY_VALID, RESTIR_TEMPORAL,
+    load, Camera, FrameParams, GBufferTexel, INVALID, RESTIR_HISTORY_VALID, RESTIR_TEMPORAL,
     RESTIR_UNBIASED, RESTIR_VISIBILITY_REUSE,
 };
 
@@ -199,7 +199,12 @@ pub fn initial_pass<const PLAIN: bool>(
 /// lines per load, its cost with many lights (many-lights, 1080p, H100: 0.35 ms of a
 /// 0.75 ms pass for 31 candidates, against 0.28 ms on the Cornell box's two lights).
 pub fn light_choice_rng(params: &FrameParams, pixel: u32) -> Rng {
-    let (x, y) = (pixel % params.width, pixel / params.width);
+    // width ≥ 1: `checked_*` are `%` and `/` without the panic (`types::load`).
+    let w = params.width;
+    let (x, y) = (
+        pixel.checked_rem(w).unwrap_or(0),
+        pixel.checked_div(w).unwrap_or(0),
+    );
     let tiles_x = params.width.div_ceil(LIGHT_TILE.0);
     let tile = (y / LIGHT_TILE.1) * tiles_x + x / LIGHT_TILE.0;
     pass_rng(params, tile, STREAM_LIGHT_CHOICE)
@@ -342,13 +347,13 @@ pub fn temporal_pass<const PLAIN: bool>(
         return cur;
     };
     let prev_pixel = (py * params.width + px) as usize;
-    let gp = g_prev[prev_pixel];
+    let gp = load(g_prev, prev_pixel);
     // The previous G-buffer's depths are distances from the previous eye.
     let prev_depth = (vec3(g.p) - vec3(params.prev_camera.eye)).length();
     if !similar_surface(vec3(g.n), prev_depth, &gp) {
         return cur; // disocclusion: the surface was not visible there
     }
-    let mut prev = previous[prev_pixel];
+    let mut prev = load(previous, prev_pixel);
     prev.m = prev.m.min(params.temporal_cap * params.candidates as f32);
 
     let mut rng = pass_rng(params, pixel, STREAM_TEMPORAL);
@@ -389,7 +394,7 @@ pub fn spatial_pass<const PLAIN: bool>(
         scene,
         params,
         gbuffer,
-        &gbuffer[pixel as usize],
+        &load(gbuffer, pixel as usize),
         input,
         x,
         y,
@@ -411,7 +416,7 @@ fn spatial_reuse<const PLAIN: bool>(
     rays: &mut u32,
 ) -> Reservoir {
     let pixel = y * params.width + x;
-    let own = input[pixel as usize];
+    let own = load(input, pixel as usize);
     let g = *g;
     if !has_hit(&g) {
         return own;
@@ -435,7 +440,7 @@ fn spatial_reuse<const PLAIN: bool>(
             continue;
         }
         let q = ny as u32 * params.width + nx as u32;
-        if q == pixel || !similar(&g, &gbuffer[q as usize]) {
+        if q == pixel || !similar(&g, &load(gbuffer, q as usize)) {
             continue;
         }
         used[n_used] = q;
@@ -498,7 +503,7 @@ fn pairwise_resample<const PLAIN: bool>(
     let mut m_sum = m_c;
     let mut j = 0;
     while j < n_neighbours {
-        m_sum += input[neighbours[j] as usize].m;
+        m_sum += load(input, neighbours[j] as usize).m;
         j += 1;
     }
     let m_rest = m_sum - m_c;
@@ -515,15 +520,15 @@ fn pairwise_resample<const PLAIN: bool>(
     while j < n_neighbours {
         let q = neighbours[j] as usize;
         j += 1;
-        let neighbour = input[q];
+        let neighbour = load(input, q);
         let share = neighbour.m / m_sum;
         // The neighbour's sample: its own target (it sees it) against this pixel's.
         let target_here = target_pdf_of::<PLAIN>(scene, params, &neighbour, sp);
         let mis = share * balance(m_rest * neighbour.target_pdf, m_c * target_here);
         from_neighbour |= out.resample(&neighbour, target_here, mis, rng.next_f32());
         if own_visible {
-            let g = &gbuffer[q];
-            let there = target_elsewhere::<PLAIN>(scene, params, g, eye, own, rays);
+            let g = load(gbuffer, q);
+            let there = target_elsewhere::<PLAIN>(scene, params, &g, eye, own, rays);
             mis_own += share * balance(m_c * own.target_pdf, m_rest * there);
         }
     }
@@ -558,7 +563,7 @@ pub fn spatial_shade_pass<const PLAIN: bool>(
     rays: &mut u32,
 ) -> Vec3 {
     let pixel = y * params.width + x;
-    let g = gbuffer[pixel as usize];
+    let g = load(gbuffer, pixel as usize);
     let r = spatial_reuse::<PLAIN>(scene, params, gbuffer, &g, input, x, y, rays);
     shade_pass::<PLAIN>(scene, params, &g, &r, pixel, rays)
 }
