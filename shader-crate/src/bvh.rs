@@ -12,14 +12,12 @@ use crate::skip::Skip;
 use crate::texture::sample_bilinear;
 use crate::types::cwbvh_meta::{FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
 use crate::types::{
-    load, Bvh2Node, CwBvhNode, CwBvhPlanes, CwBvhSlotNode, GBufferTexel, Light, Material,
-    TextureInfo, Triangle, TriangleShading, AO_NEAR_FIRST, INVALID, METAL_THRESHOLD,
+    at, load, set_at, Bvh2Node, CwBvhNode, CwBvhPlanes, CwBvhSlotNode, GBufferTexel, Light,
+    Material, TextureInfo, Triangle, TriangleShading, AO_NEAR_FIRST, INVALID, METAL_THRESHOLD,
     NORMAL_MAP_HEIGHT, SHADING_BITANGENT_FLIPPED, SHADING_COLOURS, SHADING_NORMALS,
     SHADING_TANGENTS, SHADING_UVS,
 };
 use core::mem::MaybeUninit;
-#[cfg(target_arch = "spirv")]
-use spirv_std::arch::IndexUnchecked;
 
 /// Rays to trace for `SceneBuffers::trace_pool`, handed out one at a time by index.
 pub trait RayPool {
@@ -1176,15 +1174,8 @@ impl CwbvhWalk {
     #[inline(always)]
     fn push(&mut self, base: u32, bits: u32) {
         let entry = MaybeUninit::new(UVec2::new(base, bits));
-        #[cfg(target_arch = "spirv")]
         // SAFETY: sp < CWBVH_STACK, the stack's length, where every caller pushes.
-        unsafe {
-            *self.stack.index_unchecked_mut(self.sp) = entry;
-        }
-        #[cfg(not(target_arch = "spirv"))]
-        {
-            self.stack[self.sp] = entry;
-        }
+        unsafe { set_at(&mut self.stack, self.sp, entry) };
         self.sp += 1;
     }
 
@@ -1198,12 +1189,7 @@ impl CwbvhWalk {
     fn top(&self) -> UVec2 {
         // SAFETY: 0 < sp ≤ CWBVH_STACK (`push` checks), and entry `sp - 1` was pushed
         // (written) before `sp` passed it.
-        unsafe {
-            #[cfg(target_arch = "spirv")]
-            return self.stack.index_unchecked(self.sp - 1).assume_init();
-            #[cfg(not(target_arch = "spirv"))]
-            return self.stack[self.sp - 1].assume_init();
-        }
+        unsafe { at(&self.stack, self.sp - 1).assume_init() }
     }
 
     /// Test triangle `i`; true when `any` and it was hit (the walk is over).

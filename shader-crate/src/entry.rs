@@ -9,7 +9,9 @@ use crate::glam::{UVec3, UVec4, Vec4};
 use crate::integrators::{ao, path, restir, PixelResult};
 use crate::present::{display_colour, fullscreen_triangle, PresentParams};
 use crate::reservoir::Reservoir;
-use crate::types::{FrameParams, GBufferTexel, Light, Material, TextureInfo, TriangleShading};
+use crate::types::{
+    at, set_at, FrameParams, GBufferTexel, Light, Material, TextureInfo, TriangleShading,
+};
 use spirv_std::arch::{atomic_i_add, workgroup_memory_barrier_with_group_sync, IndexUnchecked};
 use spirv_std::memory::{Scope, Semantics};
 use spirv_std::spirv;
@@ -118,12 +120,12 @@ macro_rules! image_kernel {
 impl<const N: usize> ao::GroupMemory for [u32; N] {
     fn load(&self, word: usize) -> u32 {
         // SAFETY: word < N (above).
-        unsafe { *self.index_unchecked(word) }
+        unsafe { at(self, word) }
     }
 
     fn store(&mut self, word: usize, value: u32) {
         // SAFETY: word < N (above).
-        unsafe { *self.index_unchecked_mut(word) = value }
+        unsafe { set_at(self, word, value) }
     }
 
     fn fetch_add(&mut self, word: usize, value: u32) -> u32 {

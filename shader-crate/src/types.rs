@@ -6,6 +6,8 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::glam::{UVec4, Vec3, Vec4};
 use crate::math::vec3;
+#[cfg(target_arch = "spirv")]
+use spirv_std::arch::IndexUnchecked;
 
 /// Marks "no triangle": a miss, or an empty slot.
 pub const INVALID: u32 = u32::MAX;
@@ -71,6 +73,38 @@ pub fn load<T: Copy>(items: &[T], i: usize) -> T {
     return unsafe { *items.get_unchecked(i.min(items.len().max(1) - 1)) };
     #[cfg(not(target_arch = "spirv"))]
     items[i]
+}
+
+/// Item `i` of a fixed-size array in a kernel's own memory (a traversal stack, a list of
+/// neighbours). On the GPU without a bounds check, for the reason [`load`] gives; the CPU
+/// checks.
+///
+/// # Safety
+/// `i < N`: the caller keeps its index below the length by construction.
+#[inline(always)]
+pub unsafe fn at<T: Copy, const N: usize>(items: &[T; N], i: usize) -> T {
+    debug_assert!(i < N);
+    #[cfg(target_arch = "spirv")]
+    return unsafe { *items.index_unchecked(i) };
+    #[cfg(not(target_arch = "spirv"))]
+    items[i]
+}
+
+/// Item `i` of a fixed-size array set to `value`, as [`at`] reads one.
+///
+/// # Safety
+/// `i < N`, as for [`at`].
+#[inline(always)]
+pub unsafe fn set_at<T, const N: usize>(items: &mut [T; N], i: usize, value: T) {
+    debug_assert!(i < N);
+    #[cfg(target_arch = "spirv")]
+    unsafe {
+        *items.index_unchecked_mut(i) = value;
+    }
+    #[cfg(not(target_arch = "spirv"))]
+    {
+        items[i] = value;
+    }
 }
 
 /// Word `k` of a read that [`buffer_read`] placed.

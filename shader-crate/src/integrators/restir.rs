@@ -48,8 +48,8 @@ use crate::math::{sin_cos, sqrt, vec3, PI};
 use crate::reservoir::Reservoir;
 use crate::rng::{pcg_hash, Rng};
 use crate::types::{
-    load, Camera, FrameParams, GBufferTexel, INVALID, RESTIR_HISTORY_VALID, RESTIR_TEMPORAL,
-    RESTIR_UNBIASED, RESTIR_VISIBILITY_REUSE,
+    at, load, set_at, Camera, FrameParams, GBufferTexel, INVALID, RESTIR_HISTORY_VALID,
+    RESTIR_TEMPORAL, RESTIR_UNBIASED, RESTIR_VISIBILITY_REUSE,
 };
 
 /// Most neighbours a spatial pass takes (the unbiased weights remember each one).
@@ -443,7 +443,8 @@ fn spatial_reuse<const PLAIN: bool>(
         if q == pixel || !similar(&g, &load(gbuffer, q as usize)) {
             continue;
         }
-        used[n_used] = q;
+        // SAFETY: n_used < k ≤ MAX_SPATIAL_NEIGHBOURS (`neighbour_count`), used's length.
+        unsafe { set_at(&mut used, n_used, q) };
         n_used += 1;
     }
     let mut out = Reservoir::empty();
@@ -484,7 +485,8 @@ fn neighbour_count(params: &FrameParams, own: &Reservoir) -> u32 {
 /// its estimate, as it did with 1/M weights or a 1/Z normaliser). In the unbiased mode the
 /// targets include visibility at each reservoir's owner, since a reservoir never holds a
 /// sample its owner does not see: this pixel's sample at each neighbour takes a shadow
-/// ray. Returns whether the kept sample came from a neighbour.
+/// ray. Returns whether the kept sample came from a neighbour. The neighbours are the
+/// first `n_neighbours` ≤ `MAX_SPATIAL_NEIGHBOURS` of `neighbours`.
 #[allow(clippy::too_many_arguments)]
 fn pairwise_resample<const PLAIN: bool>(
     scene: &SceneBuffers,
@@ -503,7 +505,8 @@ fn pairwise_resample<const PLAIN: bool>(
     let mut m_sum = m_c;
     let mut j = 0;
     while j < n_neighbours {
-        m_sum += load(input, neighbours[j] as usize).m;
+        // SAFETY: j < n_neighbours ≤ MAX_SPATIAL_NEIGHBOURS, the array's length (above).
+        m_sum += load(input, unsafe { at(neighbours, j) } as usize).m;
         j += 1;
     }
     let m_rest = m_sum - m_c;
@@ -518,7 +521,8 @@ fn pairwise_resample<const PLAIN: bool>(
     let mut from_neighbour = false;
     let mut j = 0;
     while j < n_neighbours {
-        let q = neighbours[j] as usize;
+        // SAFETY: as above.
+        let q = unsafe { at(neighbours, j) } as usize;
         j += 1;
         let neighbour = load(input, q);
         let share = neighbour.m / m_sum;
