@@ -92,16 +92,22 @@ impl Divisor {
     /// (⌊n / d⌋, n mod d).
     #[inline(always)]
     pub fn div_rem(&self, n: u32) -> (u32, u32) {
-        let q = if n < FAST_DIVIDENDS {
-            ((n as f32 + 0.5) * self.inv) as u32
+        if n < FAST_DIVIDENDS {
+            let q = ((n as f32 + 0.5) * self.inv) as u32;
+            (q, n - q * self.d)
         } else {
-            // d > 0 (`new`): without the division-by-zero check of `/`, a panic that
-            // rust-gpu makes a return from the kernel inside the AO walk's loop (see
-            // `bvh::CwbvhWalk::top`).
-            n.checked_div(self.d).unwrap_or(0)
-        };
-        (q, n - q * self.d)
+            div_rem(n, self.d) // d > 0 (`new`)
+        }
     }
+}
+
+/// (⌊n / d⌋, n mod d) for d > 0, the callers' invariant, without the division-by-zero
+/// check of `/` and `%`: a panic, which rust-gpu makes a return from the kernel that every
+/// loop around it pays for (`types::load`). (d = 0 would give (0, n).)
+#[inline(always)]
+pub fn div_rem(n: u32, d: u32) -> (u32, u32) {
+    let q = n.checked_div(d).unwrap_or(0);
+    (q, n - q * d)
 }
 
 /// Largest component index of `|v|` (0, 1 or 2).
@@ -183,6 +189,7 @@ mod tests {
                 u32::MAX,
             ] {
                 assert_eq!(div.div_rem(n), (n / d, n % d), "{n} / {d}");
+                assert_eq!(super::div_rem(n, d), (n / d, n % d), "{n} / {d}");
             }
         }
     }

@@ -2,7 +2,7 @@
 //! octahedral encoding of directions (two numbers per direction, for reservoirs); the
 //! stratified pattern of a pixel's AO rays.
 use crate::glam::Vec3;
-use crate::math::{sin_cos, sqrt, Divisor, PI};
+use crate::math::{div_rem, sin_cos, sqrt, Divisor, PI};
 
 /// Tangent `t` and bitangent `b` such that (t, b, n) is right-handed and orthonormal
 /// (Duff et al. 2017, "Building an Orthonormal Basis, Revisited": no branch on |n.z|).
@@ -104,9 +104,7 @@ impl Strata {
         while (rows + 1) * (rows + 1) <= count {
             rows += 1;
         }
-        // rows ≥ 1: `checked_div` is `/` without the panic (`types::load` says what one
-        // costs on the GPU).
-        let columns = count.checked_div(rows).unwrap_or(0);
+        let (columns, _) = div_rem(count, rows); // rows ≥ 1
         Self {
             rows,
             columns,

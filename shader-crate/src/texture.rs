@@ -54,8 +54,7 @@ fn texel(texels: &[u32], info: &TextureInfo, x: u32, y: u32) -> Vec4 {
 /// `i` wrapped into 0..n (texture repeat), for any integer `i`.
 fn wrap(i: i32, n: u32) -> u32 {
     let n = n as i32;
-    // `checked_rem` where `%` would be a panic on the GPU (`types::load` says what that
-    // costs): n > 0 here, so it is `%`.
+    // `%` without its panic (as `math::div_rem`, for a signed i): n > 0 here.
     let r = i.checked_rem(n).unwrap_or(0);
     (if r < 0 { r + n } else { r }) as u32
 }
