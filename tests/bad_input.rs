@@ -325,14 +325,22 @@ fn unwritable_or_unknown_outputs_fail_before_rendering() {
         "1",
         "--out",
     ];
+    // A directory that is named like an image (the render would be lost at its end).
+    let folder = dir().join("folder.png");
+    std::fs::create_dir_all(&folder).unwrap();
     for (out, needle) in [
         ("/nonexistent-dir/x.png", "does not exist"),
         ("picture.jpg", "unknown image format"),
         ("noext", "unknown image format"),
+        (folder.to_str().unwrap(), "is a directory"),
     ] {
         let mut args = base.to_vec();
         args.push(out);
-        assert_fails_with(&runner(&args, &[]), needle);
+        let o = runner(&args, &[]);
+        assert_fails_with(&o, needle);
+        // Before rendering: no scene was loaded.
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!err.contains("triangles"), "{err}");
     }
 }
 

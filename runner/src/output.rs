@@ -62,6 +62,9 @@ pub fn output_format(path: &Path) -> Result<OutputFormat> {
 /// Fail early, before a long render, if the output cannot be written.
 pub fn check_writable(path: &Path) -> Result<OutputFormat> {
     let format = output_format(path)?;
+    if path.is_dir() {
+        bail!("output '{}' is a directory", path.display());
+    }
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
