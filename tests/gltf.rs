@@ -291,6 +291,85 @@ fn a_broken_gltf_is_one_error_line() {
     }
 }
 
+/// An accessor that reaches past its buffer view is refused by name: the reader cannot read
+/// it, and reading on without it drew other triangles (indices read as absent: the
+/// vertices taken three at a time) or none ("no triangles"), as if the file said so. And
+/// an attribute of the application's own loads (it was refused as invalid).
+#[test]
+fn an_accessor_past_its_buffer_view_is_one_error_line_naming_it() {
+    let d = dir("gltf_accessor_bounds");
+    let quad: Object = (
+        "quad".into(),
+        0,
+        vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ],
+        vec![0, 1, 2, 0, 2, 3],
+    );
+    let material = r#"{"pbrMetallicRoughness":{"baseColorFactor":[1,1,1,1]}}"#.to_string();
+    let good = d.join("good.gltf");
+    write_gltf(&good, &[quad], &[material], [0.0; 3], "");
+    let json = std::fs::read_to_string(&good).unwrap();
+    let positions = r#""componentType":5126,"count":4,"type":"VEC3""#;
+    let indices = r#""componentType":5125,"count":6,"type":"SCALAR""#;
+    assert!(json.contains(positions) && json.contains(indices));
+    let render = |path: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_runner"))
+            .args([
+                "render",
+                "--backend",
+                "cpu",
+                "--width",
+                "8",
+                "--height",
+                "8",
+            ])
+            .args(["--spp", "1", "--scene", path.to_str().unwrap()])
+            .args(["--out", d.join("x.png").to_str().unwrap()])
+            .output()
+            .unwrap()
+    };
+    let o = render(&good);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // An application-specific attribute (a leading underscore: glTF 2.0, 3.7.2.1; bevy's
+    // barycentric.gltf has `__BARYCENTRIC`) is valid, and ignored.
+    let custom = d.join("custom.gltf");
+    let attributes = r#""attributes":{"POSITION":0}"#;
+    assert!(json.contains(attributes));
+    let with_custom = r#""attributes":{"POSITION":0,"_BATCHID":0}"#;
+    std::fs::write(&custom, json.replace(attributes, with_custom)).unwrap();
+    let o = render(&custom);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for (what, from, to) in [
+        (
+            "indices accessor 1",
+            indices,
+            r#""componentType":5125,"count":9,"type":"SCALAR""#,
+        ),
+        (
+            "POSITION accessor 0",
+            positions,
+            r#""byteOffset":40,"componentType":5126,"count":4,"type":"VEC3""#,
+        ),
+    ] {
+        let broken = d.join("broken.gltf");
+        std::fs::write(&broken, json.replace(from, to)).unwrap();
+        let o = render(&broken);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
+        assert_eq!(o.status.code(), Some(1), "{stderr}");
+        assert!(
+            errors.len() == 1
+                && errors[0].contains(what)
+                && errors[0].contains("mesh 0 primitive 0"),
+            "{stderr}"
+        );
+    }
+}
+
 fn a_broken_gltf_is_refused(text: &str) {
     let d = dir("gltf_broken");
     std::fs::write(d.join("broken.gltf"), text).unwrap();

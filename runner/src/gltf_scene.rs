@@ -20,6 +20,7 @@
 use std::path::Path;
 
 use glam::{Affine2, Mat3, Mat4, Vec2, Vec3, Vec4};
+use gltf::Semantic;
 use kernels::types::{Material, Triangle, DEFAULT_IOR};
 
 use crate::bail;
@@ -451,7 +452,23 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                 continue;
             }
             let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+            // An accessor the primitive names but the reader cannot read lies (partly)
+            // outside its buffer view: refused, as reading on without it would draw
+            // other triangles (indices) or other shading (normals, ...) than the file's.
+            let at = format!("mesh {} primitive {}", mesh.index(), prim.index());
+            let broken = |what: &str, accessor: gltf::Accessor| {
+                Error(format!(
+                    "scene '{name}': {at}: its {what} accessor {} reaches past the end of its \
+                     buffer view or buffer",
+                    accessor.index()
+                ))
+            };
+            let attribute = |semantic: Semantic| prim.get(&semantic);
             let Some(positions) = reader.read_positions() else {
+                if let Some(a) = attribute(Semantic::Positions) {
+                    return Err(broken("POSITION", a));
+                }
+                ignored.push("primitives without POSITION");
                 continue;
             };
             let positions: Vec<Vec3> = positions
@@ -461,6 +478,28 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                 n.map(|n| (normal_matrix * Vec3::from(n)).normalize_or_zero())
                     .collect()
             });
+            for (semantic, what, read) in [
+                (Semantic::Normals, "NORMAL", normals.is_some()),
+                (
+                    Semantic::TexCoords(0),
+                    "TEXCOORD_0",
+                    reader.read_tex_coords(0).is_some(),
+                ),
+                (
+                    Semantic::Tangents,
+                    "TANGENT",
+                    reader.read_tangents().is_some(),
+                ),
+                (
+                    Semantic::Colors(0),
+                    "COLOR_0",
+                    reader.read_colors(0).is_some(),
+                ),
+            ] {
+                if let (Some(a), false) = (attribute(semantic), read) {
+                    return Err(broken(what, a));
+                }
+            }
             let material_index = prim.material().index();
             // glTF's v runs down the image; our textures put v = 0 at the bottom row.
             let uv_map = material_index.map_or(Affine2::IDENTITY, |i| uv_maps[i]);
@@ -492,9 +531,10 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
             let colours: Option<Vec<Vec3>> = reader
                 .read_colors(0)
                 .map(|c| c.into_rgb_f32().map(Vec3::from).collect());
-            let indices: Vec<u32> = match reader.read_indices() {
-                Some(i) => i.into_u32().collect(),
-                None => (0..positions.len() as u32).collect(),
+            let indices: Vec<u32> = match (reader.read_indices(), prim.indices()) {
+                (Some(i), _) => i.into_u32().collect(),
+                (None, None) => (0..positions.len() as u32).collect(),
+                (None, Some(a)) => return Err(broken("indices", a)),
             };
             if material_index.is_some_and(|i| invisible[i]) {
                 continue;

@@ -241,7 +241,7 @@ impl Scene {
             ));
         }
         if triangles.is_empty() {
-            bail!("the scene has no triangles (is it an OBJ file with faces?)");
+            bail!("the scene has no triangles (no faces, or only points and lines)");
         }
         let (triangles, duplicates) = without_duplicates(triangles, &materials);
         if duplicates > 0 {
