@@ -370,6 +370,44 @@ fn an_accessor_past_its_buffer_view_is_one_error_line_naming_it() {
     }
 }
 
+/// A .gltf whose buffer file is not beside it is one error naming that file (the importer
+/// says only "No such file or directory").
+#[test]
+fn a_missing_buffer_file_is_named() {
+    let d = dir("gltf_missing_bin");
+    let quad: Object = (
+        "quad".into(),
+        0,
+        vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0]],
+        vec![0, 1, 2],
+    );
+    let material = r#"{"pbrMetallicRoughness":{"baseColorFactor":[1,1,1,1]}}"#.to_string();
+    let path = d.join("scene.gltf");
+    write_gltf(&path, &[quad], &[material], [0.0; 3], "");
+    let json = std::fs::read_to_string(&path).unwrap();
+    let start = json.find(r#""uri":"data:"#).unwrap() + r#""uri":""#.len();
+    let end = start + json[start..].find('"').unwrap();
+    let external = format!("{}{}{}", &json[..start], "scene%20data.bin", &json[end..]);
+    std::fs::write(&path, external).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_runner"))
+        .args([
+            "render",
+            "--backend",
+            "cpu",
+            "--scene",
+            path.to_str().unwrap(),
+        ])
+        .args(["--out", d.join("x.png").to_str().unwrap()])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.lines().count() == 1 && stderr.contains("its buffer 0 'scene%20data.bin'"),
+        "{stderr}"
+    );
+}
+
 fn a_broken_gltf_is_refused(text: &str) {
     let d = dir("gltf_broken");
     std::fs::write(d.join("broken.gltf"), text).unwrap();

@@ -171,7 +171,38 @@ pub fn load(path: &Path) -> Result<Scene> {
         &format!("scene '{name}'"),
         md.len() as f64 * crate::memory::BYTES_PER_OBJ_BYTE,
     )?;
-    guarded(&name, || from_import(&name, gltf::import(path)))
+    guarded(&name, || {
+        let imported = gltf::import(path);
+        if let Err(gltf::Error::Io(e)) = &imported {
+            if let Some(file) = missing_file(path) {
+                bail!("cannot load scene '{name}': its {file}: {e}");
+            }
+        }
+        from_import(&name, imported)
+    })
+}
+
+/// The first buffer or image file that a .gltf names beside it and that cannot be found
+/// ("buffer 0 'scene.bin'"), for the importer's bare "No such file or directory".
+fn missing_file(path: &Path) -> Option<String> {
+    let doc = gltf::Gltf::open(path).ok()?;
+    let dir = path.parent()?;
+    let absent = |uri: &str| {
+        !uri.contains(':') && urlencoding::decode(uri).is_ok_and(|file| !dir.join(&*file).is_file())
+    };
+    let buffers = doc.buffers().filter_map(|b| match b.source() {
+        gltf::buffer::Source::Uri(uri) => {
+            absent(uri).then(|| format!("buffer {} '{uri}'", b.index()))
+        }
+        gltf::buffer::Source::Bin => None,
+    });
+    let images = doc.images().filter_map(|i| match i.source() {
+        gltf::image::Source::Uri { uri, .. } => {
+            absent(uri).then(|| format!("image {} '{uri}'", i.index()))
+        }
+        gltf::image::Source::View { .. } => None,
+    });
+    buffers.chain(images).next()
 }
 
 /// A glTF file's bytes (named `name` in messages; .glb, or .gltf whose buffers and images
