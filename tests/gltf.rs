@@ -529,6 +529,38 @@ fn base_colour_textures_are_read_with_gltf_texture_coordinates() {
     }
 }
 
+/// A texture whose image file is not there is left out with one warning naming the file,
+/// as an OBJ's missing `map_Kd` is (the whole scene was refused): the floor then has its
+/// base colour factor, white, everywhere.
+#[test]
+fn a_missing_texture_image_is_a_warning_and_the_factor_stays() {
+    let d = dir("gltf_missing_image");
+    let texels: [[u8; 4]; 4] = [[255, 0, 0, 255]; 4];
+    write_textured_floor(&d.join("floor.gltf"), &texels, "");
+    let json = std::fs::read_to_string(d.join("floor.gltf")).unwrap();
+    let start = json.find(r#""uri":"data:image/png"#).unwrap() + r#""uri":""#.len();
+    let end = start + json[start..].find('"').unwrap();
+    let external = format!("{}not_here.png{}", &json[..start], &json[end..]);
+    std::fs::write(d.join("floor.gltf"), external).unwrap();
+    let (image, stderr) = render(&d.join("floor.gltf"), &d.join("floor.exr"), &FLOOR_VIEW);
+    // One line about the image, a warning (the other is that the sky alone lights it).
+    let about_image: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.contains("not_here.png"))
+        .collect();
+    assert!(
+        about_image.len() == 1
+            && about_image[0].starts_with("warning:")
+            && about_image[0].contains("image 0 ('not_here.png') not loaded"),
+        "{stderr}"
+    );
+    let at = |fx: f32, fy: f32| image.pixels[((fy * 64.0) as usize) * 64 + (fx * 64.0) as usize];
+    for (fx, fy) in [(0.3, 0.3), (0.7, 0.3), (0.3, 0.7), (0.7, 0.7)] {
+        let pixel = at(fx, fy);
+        assert!((pixel - Vec3::ONE).abs().max_element() < 0.05, "{pixel}");
+    }
+}
+
 #[test]
 fn alpha_mask_materials_are_cut_out() {
     // alphaMode MASK with alphaCutoff 0.3: the top left texel's alpha 0 is a hole (the white

@@ -171,10 +171,12 @@ pub fn load(path: &Path) -> Result<Scene> {
         &format!("scene '{name}'"),
         md.len() as f64 * crate::memory::BYTES_PER_OBJ_BYTE,
     )?;
+    // Relative URIs are beside the file (gltf's `import` takes "./" for a bare name).
+    let base = path.parent().unwrap_or(Path::new("./"));
     guarded(&name, || {
-        let imported = gltf::import(path);
+        let imported = gltf::Gltf::open(path).and_then(|g| import(&name, g, Some(base)));
         if let Err(gltf::Error::Io(e)) = &imported {
-            if let Some(file) = missing_file(path) {
+            if let Some(file) = missing_buffer(path, base) {
                 bail!("cannot load scene '{name}': its {file}: {e}");
             }
         }
@@ -182,33 +184,60 @@ pub fn load(path: &Path) -> Result<Scene> {
     })
 }
 
-/// The first buffer or image file that a .gltf names beside it and that cannot be found
-/// ("buffer 0 'scene.bin'"), for the importer's bare "No such file or directory".
-fn missing_file(path: &Path) -> Option<String> {
+/// The first buffer file that a .gltf names beside it and that cannot be found ("buffer 0
+/// 'scene.bin'"), for the importer's bare "No such file or directory".
+fn missing_buffer(path: &Path, base: &Path) -> Option<String> {
     let doc = gltf::Gltf::open(path).ok()?;
-    let dir = path.parent()?;
     let absent = |uri: &str| {
-        !uri.contains(':') && urlencoding::decode(uri).is_ok_and(|file| !dir.join(&*file).is_file())
+        !uri.contains(':') && urlencoding::decode(uri).is_ok_and(|f| !base.join(&*f).is_file())
     };
-    let buffers = doc.buffers().filter_map(|b| match b.source() {
+    doc.buffers().find_map(|b| match b.source() {
         gltf::buffer::Source::Uri(uri) => {
             absent(uri).then(|| format!("buffer {} '{uri}'", b.index()))
         }
         gltf::buffer::Source::Bin => None,
-    });
-    let images = doc.images().filter_map(|i| match i.source() {
-        gltf::image::Source::Uri { uri, .. } => {
-            absent(uri).then(|| format!("image {} '{uri}'", i.index()))
-        }
-        gltf::image::Source::View { .. } => None,
-    });
-    buffers.chain(images).next()
+    })
+}
+
+/// gltf's `import`, but an image that cannot be read (a file that is not there, an
+/// encoding it does not decode) is one warning and its textures are left out, as an OBJ's
+/// `map_Kd` that cannot be read, instead of the whole scene refused.
+fn import(name: &str, gltf: gltf::Gltf, base: Option<&Path>) -> gltf::Result<Imported> {
+    let gltf::Gltf { document, blob } = gltf;
+    let buffers = gltf::import_buffers(&document, base, blob)?;
+    let mut warnings = Vec::new();
+    let images = document
+        .images()
+        .map(|image| {
+            let source = image.source();
+            let file = match source {
+                gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
+                    format!(" ('{uri}')")
+                }
+                _ => String::new(),
+            };
+            gltf::image::Data::from_source(source, base, &buffers)
+                .map_err(|e| {
+                    warnings.push(format!(
+                        "'{name}': image {}{file} not loaded: {e}; its textures are left out",
+                        image.index()
+                    ))
+                })
+                .ok()
+        })
+        .collect();
+    Ok((document, buffers, images, warnings))
 }
 
 /// A glTF file's bytes (named `name` in messages; .glb, or .gltf whose buffers and images
 /// are embedded as data URIs) as a scene.
 pub fn parse_gltf_bytes(name: &str, bytes: &[u8]) -> Result<Scene> {
-    guarded(name, || from_import(name, gltf::import_slice(bytes)))
+    guarded(name, || {
+        from_import(
+            name,
+            gltf::Gltf::from_slice(bytes).and_then(|g| import(name, g, None)),
+        )
+    })
 }
 
 /// Load a glTF, the gltf library's panics one `error:` for this file like its errors. gltf
@@ -230,22 +259,24 @@ fn guarded(name: &str, load: impl FnOnce() -> Result<Scene>) -> Result<Scene> {
     })
 }
 
-/// What gltf's import returns: the document, its buffers and its images.
+/// What `import` gives: the document, its buffers, its images (`None` where one could not
+/// be read) and a warning for each image that could not.
 type Imported = (
     gltf::Document,
     Vec<gltf::buffer::Data>,
-    Vec<gltf::image::Data>,
+    Vec<Option<gltf::image::Data>>,
+    Vec<String>,
 );
 
 /// The scene of an imported glTF document, its buffers and its images.
 fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
-    let (doc, buffers, images) =
+    let (doc, buffers, images, mut warnings) =
         imported.map_err(|e| Error(format!("cannot load scene '{name}': {e}")))?;
-    let mut warnings: Vec<String> = doc
-        .extensions_used()
-        .filter(|e| !READ_EXTENSIONS.contains(e))
-        .map(|e| format!("'{name}': extension {e} is not supported yet; ignored"))
-        .collect();
+    warnings.extend(
+        doc.extensions_used()
+            .filter(|e| !READ_EXTENSIONS.contains(e))
+            .map(|e| format!("'{name}': extension {e} is not supported yet; ignored")),
+    );
     let mut attributes = SurfaceAttributes::default();
 
     // Images → textures, on first use: as colour or as data.
@@ -278,13 +309,15 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
             } else {
                 &mut texture_of_image
             };
-            *cache[image].get_or_insert_with(|| match rgba8(&images[image]) {
+            // An image that was not loaded has had its warning.
+            let loaded = images[image].as_ref()?;
+            *cache[image].get_or_insert_with(|| match rgba8(loaded) {
                 Some(rgba) if linear => Some(crate::textures::add_linear(&mut attributes, &rgba)),
                 Some(rgba) => Some(crate::textures::add(&mut attributes, &rgba)),
                 None => {
                     warnings.push(format!(
                         "'{name}': image {image} is not 8-bit ({:?}); its {what} is ignored",
-                        images[image].format
+                        loaded.format
                     ));
                     None
                 }
@@ -339,7 +372,7 @@ fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
                 Some(_) => 0,
                 None => (a as f32 * base_alpha.clamp(0.0, 1.0)).round() as u8,
             };
-            let mask = match base_image.and_then(|i| rgba8(&images[i])) {
+            let mask = match base_image.and_then(|i| images[i].as_ref().and_then(rgba8)) {
                 Some(mut rgba) => {
                     for p in rgba.pixels_mut() {
                         *p = image::Rgba([255, 255, 255, mask_texel(p[3])]);
