@@ -2,7 +2,7 @@
 //! transforms, cameras and embedded textures are read.
 mod common;
 
-use common::{render_cpu as render, tmp_dir as dir};
+use common::{render_cpu as render, run_render_cpu, tmp_dir as dir};
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -316,22 +316,8 @@ fn an_accessor_past_its_buffer_view_is_one_error_line_naming_it() {
     let positions = r#""componentType":5126,"count":4,"type":"VEC3""#;
     let indices = r#""componentType":5125,"count":6,"type":"SCALAR""#;
     assert!(json.contains(positions) && json.contains(indices));
-    let render = |path: &Path| {
-        Command::new(env!("CARGO_BIN_EXE_runner"))
-            .args([
-                "render",
-                "--backend",
-                "cpu",
-                "--width",
-                "8",
-                "--height",
-                "8",
-            ])
-            .args(["--spp", "1", "--scene", path.to_str().unwrap()])
-            .args(["--out", d.join("x.png").to_str().unwrap()])
-            .output()
-            .unwrap()
-    };
+    let small = ["--width", "8", "--height", "8", "--spp", "1"];
+    let render = |path: &Path| run_render_cpu(path, &d.join("x.png"), &small);
     let o = render(&good);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // An application-specific attribute (a leading underscore: glTF 2.0, 3.7.2.1; bevy's
@@ -385,27 +371,21 @@ fn a_missing_buffer_file_is_named() {
     let path = d.join("scene.gltf");
     write_gltf(&path, &[quad], &[material], [0.0; 3], "");
     let json = std::fs::read_to_string(&path).unwrap();
-    let start = json.find(r#""uri":"data:"#).unwrap() + r#""uri":""#.len();
-    let end = start + json[start..].find('"').unwrap();
-    let external = format!("{}{}{}", &json[..start], "scene%20data.bin", &json[end..]);
-    std::fs::write(&path, external).unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_runner"))
-        .args([
-            "render",
-            "--backend",
-            "cpu",
-            "--scene",
-            path.to_str().unwrap(),
-        ])
-        .args(["--out", d.join("x.png").to_str().unwrap()])
-        .output()
-        .unwrap();
+    std::fs::write(&path, with_uri(&json, "data:", "scene%20data.bin")).unwrap();
+    let o = run_render_cpu(&path, &d.join("x.png"), &[]);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{stderr}");
     assert!(
         stderr.lines().count() == 1 && stderr.contains("its buffer 0 'scene%20data.bin'"),
         "{stderr}"
     );
+}
+
+/// `json` with the first URI that starts with `prefix` replaced by `uri`.
+fn with_uri(json: &str, prefix: &str, uri: &str) -> String {
+    let start = json.find(&format!(r#""uri":"{prefix}"#)).unwrap() + r#""uri":""#.len();
+    let end = start + json[start..].find('"').unwrap();
+    format!("{}{uri}{}", &json[..start], &json[end..])
 }
 
 fn a_broken_gltf_is_refused(text: &str) {
@@ -538,9 +518,7 @@ fn a_missing_texture_image_is_a_warning_and_the_factor_stays() {
     let texels: [[u8; 4]; 4] = [[255, 0, 0, 255]; 4];
     write_textured_floor(&d.join("floor.gltf"), &texels, "");
     let json = std::fs::read_to_string(d.join("floor.gltf")).unwrap();
-    let start = json.find(r#""uri":"data:image/png"#).unwrap() + r#""uri":""#.len();
-    let end = start + json[start..].find('"').unwrap();
-    let external = format!("{}not_here.png{}", &json[..start], &json[end..]);
+    let external = with_uri(&json, "data:image/png", "not_here.png");
     std::fs::write(d.join("floor.gltf"), external).unwrap();
     let (image, stderr) = render(&d.join("floor.gltf"), &d.join("floor.exr"), &FLOOR_VIEW);
     // One line about the image, a warning (the other is that the sky alone lights it).
