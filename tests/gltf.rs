@@ -361,15 +361,7 @@ fn an_accessor_past_its_buffer_view_is_one_error_line_naming_it() {
 #[test]
 fn a_missing_buffer_file_is_named() {
     let d = dir("gltf_missing_bin");
-    let quad: Object = (
-        "quad".into(),
-        0,
-        vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0]],
-        vec![0, 1, 2],
-    );
-    let material = r#"{"pbrMetallicRoughness":{"baseColorFactor":[1,1,1,1]}}"#.to_string();
-    let path = d.join("scene.gltf");
-    write_gltf(&path, &[quad], &[material], [0.0; 3], "");
+    let path = one_triangle_gltf(&d);
     let json = std::fs::read_to_string(&path).unwrap();
     std::fs::write(&path, with_uri(&json, "data:", "scene%20data.bin")).unwrap();
     let o = run_render_cpu(&path, &d.join("x.png"), &[]);
@@ -379,6 +371,42 @@ fn a_missing_buffer_file_is_named() {
         stderr.lines().count() == 1 && stderr.contains("its buffer 0 'scene%20data.bin'"),
         "{stderr}"
     );
+}
+
+#[test]
+fn a_buffer_shorter_than_its_length_is_named() {
+    let d = dir("gltf_short_buffer");
+    let path = one_triangle_gltf(&d);
+    let json = std::fs::read_to_string(&path).unwrap();
+    // The buffer says it holds a kilobyte more than its data URI does.
+    let key = r#""buffers":[{"byteLength":"#;
+    let start = json.find(key).unwrap() + key.len();
+    let end = start + json[start..].find(',').unwrap();
+    let length: usize = json[start..end].parse().unwrap();
+    let json = format!("{}{}{}", &json[..start], length + 1024, &json[end..]);
+    std::fs::write(&path, json).unwrap();
+    let o = run_render_cpu(&path, &d.join("x.png"), &[]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.lines().count() == 1
+            && stderr.contains("its buffer 0 holds 48 bytes, fewer than the 1072"),
+        "{stderr}"
+    );
+}
+
+/// `scene.gltf` in `d`: one white triangle, its buffer a data URI.
+fn one_triangle_gltf(d: &Path) -> PathBuf {
+    let triangle: Object = (
+        "triangle".into(),
+        0,
+        vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0]],
+        vec![0, 1, 2],
+    );
+    let material = r#"{"pbrMetallicRoughness":{"baseColorFactor":[1,1,1,1]}}"#.to_string();
+    let path = d.join("scene.gltf");
+    write_gltf(&path, &[triangle], &[material], [0.0; 3], "");
+    path
 }
 
 /// `json` with the first URI that starts with `prefix` replaced by `uri`.

@@ -174,37 +174,43 @@ pub fn load(path: &Path) -> Result<Scene> {
     // Relative URIs are beside the file (gltf's `import` takes "./" for a bare name).
     let base = path.parent().unwrap_or(Path::new("./"));
     guarded(&name, || {
-        let imported = gltf::Gltf::open(path).and_then(|g| import(&name, g, Some(base)));
-        if let Err(gltf::Error::Io(e)) = &imported {
-            if let Some(file) = missing_buffer(path, base) {
-                bail!("cannot load scene '{name}': its {file}: {e}");
-            }
-        }
-        from_import(&name, imported)
-    })
-}
-
-/// The first buffer file that a .gltf names beside it and that cannot be found ("buffer 0
-/// 'scene.bin'"), for the importer's bare "No such file or directory".
-fn missing_buffer(path: &Path, base: &Path) -> Option<String> {
-    let doc = gltf::Gltf::open(path).ok()?;
-    let absent = |uri: &str| {
-        !uri.contains(':') && urlencoding::decode(uri).is_ok_and(|f| !base.join(&*f).is_file())
-    };
-    doc.buffers().find_map(|b| match b.source() {
-        gltf::buffer::Source::Uri(uri) => {
-            absent(uri).then(|| format!("buffer {} '{uri}'", b.index()))
-        }
-        gltf::buffer::Source::Bin => None,
+        let gltf = gltf::Gltf::open(path)
+            .map_err(|e| Error(format!("cannot load scene '{name}': {e}")))?;
+        from_import(&name, import(&name, gltf, Some(base))?)
     })
 }
 
 /// gltf's `import`, but an image that cannot be read (a file that is not there, an
 /// encoding it does not decode) is one warning and its textures are left out, as an OBJ's
 /// `map_Kd` that cannot be read, instead of the whole scene refused.
-fn import(name: &str, gltf: gltf::Gltf, base: Option<&Path>) -> gltf::Result<Imported> {
-    let gltf::Gltf { document, blob } = gltf;
-    let buffers = gltf::import_buffers(&document, base, blob)?;
+/// A buffer that cannot be read is one error naming it ("its buffer 0 'scene.bin'"), where
+/// the importer said only "No such file or directory".
+fn import(name: &str, gltf: gltf::Gltf, base: Option<&Path>) -> Result<Imported> {
+    let gltf::Gltf { document, mut blob } = gltf;
+    let buffers = document
+        .buffers()
+        .map(|buffer| {
+            let file = match buffer.source() {
+                gltf::buffer::Source::Uri(uri) if !uri.starts_with("data:") => format!(" '{uri}'"),
+                _ => String::new(),
+            };
+            let its = format!(
+                "cannot load scene '{name}': its buffer {}{file}",
+                buffer.index()
+            );
+            let data = gltf::buffer::Data::from_source_and_blob(buffer.source(), base, &mut blob)
+                .map_err(|e| Error(format!("{its}: {e}")))?;
+            // The check of gltf's `import_buffers`: accessors trust the stated length.
+            if data.len() < buffer.length() {
+                bail!(
+                    "{its} holds {} bytes, fewer than the {} it states",
+                    data.len(),
+                    buffer.length()
+                );
+            }
+            Ok(data)
+        })
+        .collect::<Result<Vec<_>>>()?;
     let mut warnings = Vec::new();
     let images = document
         .images()
@@ -233,10 +239,9 @@ fn import(name: &str, gltf: gltf::Gltf, base: Option<&Path>) -> gltf::Result<Imp
 /// are embedded as data URIs) as a scene.
 pub fn parse_gltf_bytes(name: &str, bytes: &[u8]) -> Result<Scene> {
     guarded(name, || {
-        from_import(
-            name,
-            gltf::Gltf::from_slice(bytes).and_then(|g| import(name, g, None)),
-        )
+        let gltf = gltf::Gltf::from_slice(bytes)
+            .map_err(|e| Error(format!("cannot load scene '{name}': {e}")))?;
+        from_import(name, import(name, gltf, None)?)
     })
 }
 
@@ -269,9 +274,8 @@ type Imported = (
 );
 
 /// The scene of an imported glTF document, its buffers and its images.
-fn from_import(name: &str, imported: gltf::Result<Imported>) -> Result<Scene> {
-    let (doc, buffers, images, mut warnings) =
-        imported.map_err(|e| Error(format!("cannot load scene '{name}': {e}")))?;
+fn from_import(name: &str, imported: Imported) -> Result<Scene> {
+    let (doc, buffers, images, mut warnings) = imported;
     warnings.extend(
         doc.extensions_used()
             .filter(|e| !READ_EXTENSIONS.contains(e))
