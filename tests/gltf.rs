@@ -340,6 +340,16 @@ fn an_accessor_past_its_buffer_view_is_one_error_line_naming_it() {
             positions,
             r#""byteOffset":40,"componentType":5126,"count":4,"type":"VEC3""#,
         ),
+        (
+            "POSITION accessor 0 holds VEC2 values",
+            positions,
+            r#""componentType":5126,"count":4,"type":"VEC2""#,
+        ),
+        (
+            "POSITION accessor 0 holds 32-bit integers",
+            positions,
+            r#""componentType":5125,"count":4,"type":"VEC3""#,
+        ),
     ] {
         let broken = d.join("broken.gltf");
         std::fs::write(&broken, json.replace(from, to)).unwrap();
@@ -354,6 +364,133 @@ fn an_accessor_past_its_buffer_view_is_one_error_line_naming_it() {
             "{stderr}"
         );
     }
+}
+
+/// One triangle with normals, texture coordinates and tangents, under a node that scales by
+/// ¼, its vertex attributes as `f32` or as the integers of `KHR_mesh_quantization`
+/// (positions i16 as whole numbers, normals i8, texture coordinates u8 and tangents i16
+/// normalized; strides padded to 4 bytes as glTF asks), with the same values either way.
+fn quantized_triangle(quantized: bool) -> String {
+    let mut buffer: Vec<u8> = Vec::new();
+    let mut views = Vec::new();
+    let mut accessors = Vec::new();
+    // Each attribute: its values, its glTF type and, quantized, its component type, the
+    // scale it is stored at (an f32 value v as the integer v × scale) and its stride.
+    struct Stored {
+        values: Vec<Vec<i32>>,
+        kind: &'static str,
+        quantized: (u32, i32, usize),
+    }
+    let attributes = [
+        Stored {
+            values: vec![vec![0, 0, 0], vec![4, 0, 0], vec![0, -2, 4]],
+            kind: "VEC3",
+            quantized: (5122, 1, 8),
+        },
+        Stored {
+            values: vec![vec![0, 1, 0], vec![1, 0, 0], vec![0, 0, -1]],
+            kind: "VEC3",
+            quantized: (5120, 127, 4),
+        },
+        Stored {
+            values: vec![vec![0, 0], vec![1, 0], vec![0, 1]],
+            kind: "VEC2",
+            quantized: (5121, 255, 4),
+        },
+        Stored {
+            values: vec![vec![1, 0, 0, 1], vec![0, 0, 1, -1], vec![0, 1, 0, 1]],
+            kind: "VEC4",
+            quantized: (5122, 32767, 8),
+        },
+    ];
+    for Stored {
+        values,
+        kind,
+        quantized: (component, scale, stride),
+    } in attributes
+    {
+        let start = buffer.len();
+        for v in &values {
+            let item_start = buffer.len();
+            for &x in v {
+                match (quantized, component) {
+                    (false, _) => buffer.extend((x as f32).to_le_bytes()),
+                    (true, 5120 | 5121) => buffer.push((x * scale) as u8),
+                    (true, _) => buffer.extend(((x * scale) as i16).to_le_bytes()),
+                }
+            }
+            let stride = if quantized { stride } else { 4 * v.len() };
+            buffer.resize(item_start + stride, 0);
+        }
+        let (component, normalized, stride) = if quantized {
+            (component, scale != 1, stride)
+        } else {
+            (5126, false, 4 * values[0].len())
+        };
+        views.push(format!(
+            r#"{{"buffer":0,"byteOffset":{start},"byteLength":{},"byteStride":{stride}}}"#,
+            buffer.len() - start
+        ));
+        // POSITION (the first) must state its bounds.
+        let bounds = if views.len() == 1 {
+            r#","min":[0,-2,0],"max":[4,0,4]"#
+        } else {
+            ""
+        };
+        accessors.push(format!(
+            r#"{{"bufferView":{},"componentType":{component},"normalized":{normalized},"count":3,"type":"{kind}"{bounds}}}"#,
+            views.len() - 1
+        ));
+    }
+    let extensions = if quantized {
+        r#""extensionsUsed":["KHR_mesh_quantization"],"extensionsRequired":["KHR_mesh_quantization"],"#
+    } else {
+        ""
+    };
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},{extensions}"scene":0,"scenes":[{{"nodes":[0]}}],
+"nodes":[{{"mesh":0,"scale":[0.25,0.25,0.25]}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"NORMAL":1,"TEXCOORD_0":2,"TANGENT":3}}}}]}}],
+"accessors":[{}],"bufferViews":[{}],
+"buffers":[{{"byteLength":{},"uri":"data:application/octet-stream;base64,{}"}}]}}"#,
+        accessors.join(","),
+        views.join(","),
+        buffer.len(),
+        base64(&buffer)
+    )
+}
+
+/// `KHR_mesh_quantization` (gltfpack's output, and a required extension there) loads as its
+/// float twin: the integers dequantized (normalized ones to [−1, 1] or [0, 1]) and scaled by
+/// the node. gltf read every POSITION, NORMAL and TANGENT as f32 and refused the extension.
+#[test]
+fn quantized_attributes_load_as_their_float_twins() {
+    let load = |quantized| {
+        let text = quantized_triangle(quantized);
+        runner::gltf_scene::parse_gltf_bytes("triangle.gltf", text.as_bytes())
+            .unwrap_or_else(|e| panic!("{e}"))
+    };
+    let (float, quantized) = (load(false), load(true));
+    let corners = |s: &runner::scene::Scene| {
+        let t = s.triangles[0];
+        [t.p0, t.p1, t.p2]
+    };
+    assert_eq!(float.triangles.len(), 1);
+    assert_eq!(
+        corners(&float),
+        [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, -0.5, 1.0]]
+    );
+    assert_eq!(corners(&quantized), corners(&float));
+    let shading = |s: &runner::scene::Scene| s.attributes.shading[0];
+    let all = kernels::types::SHADING_NORMALS
+        | kernels::types::SHADING_UVS
+        | kernels::types::SHADING_TANGENTS;
+    assert_eq!(shading(&float).flags & all, all);
+    assert_eq!(
+        bytemuck::bytes_of(&shading(&quantized)),
+        bytemuck::bytes_of(&shading(&float))
+    );
+    assert!(quantized.warnings.is_empty(), "{:?}", quantized.warnings);
 }
 
 /// A .gltf whose buffer file is not beside it is one error naming that file (the importer

@@ -1,6 +1,7 @@
 //! glTF 2.0 scenes (`.gltf` with external or embedded buffers and images, `.glb`) through
 //! the `gltf` crate: the default scene's nodes with their transforms, triangle primitives
-//! with normals and texture coordinates, materials mapped onto our BSDF family, base
+//! with normals and texture coordinates (floats, or `KHR_mesh_quantization`'s integers:
+//! `gltf_attributes`), materials mapped onto our BSDF family, base
 //! colour, normal, metallic-roughness and emissive textures (with `KHR_texture_transform`,
 //! one per material, baked into the texture coordinates), `KHR_lights_punctual` lights
 //! (see `gltf_lights`), and the first camera as the default view.
@@ -25,6 +26,7 @@ use kernels::types::{Material, Triangle, DEFAULT_IOR};
 
 use crate::bail;
 use crate::error::{Error, Result};
+use crate::gltf_attributes as vertex;
 use crate::gltf_lights::{radiometric, PointLight, SceneSun};
 use crate::scene::{CameraHint, Scene, SurfaceAttributes};
 
@@ -35,7 +37,8 @@ pub const MAX_GLTF_BYTES: u64 = 2 << 30;
 /// another gets one warning naming it (one it *requires* is refused by the importer).
 /// `KHR_materials_volume` is how glTF says a transmissive mesh is solid, which is what our
 /// dielectric always is.
-const READ_EXTENSIONS: [&str; 8] = [
+const READ_EXTENSIONS: [&str; 9] = [
+    "KHR_mesh_quantization",
     "KHR_lights_punctual",
     "KHR_materials_pbrSpecularGlossiness",
     "KHR_materials_emissive_strength",
@@ -45,6 +48,9 @@ const READ_EXTENSIONS: [&str; 8] = [
     "KHR_materials_specular",
     "KHR_materials_volume",
 ];
+
+/// The extensions of READ_EXTENSIONS that gltf refuses where a file requires them.
+const READ_BEYOND_GLTF: [&str; 1] = ["KHR_mesh_quantization"];
 
 /// A texture's `KHR_texture_transform` as the map of glTF texture coordinates it
 /// specifies: scale, then rotation, then offset. The rotation turns u towards −v, as the
@@ -174,10 +180,26 @@ pub fn load(path: &Path) -> Result<Scene> {
     // Relative URIs are beside the file (gltf's `import` takes "./" for a bare name).
     let base = path.parent().unwrap_or(Path::new("./"));
     guarded(&name, || {
-        let gltf = gltf::Gltf::open(path)
+        let file = std::io::BufReader::new(
+            std::fs::File::open(path)
+                .map_err(|e| Error(format!("cannot read scene '{name}': {e}")))?,
+        );
+        let gltf = gltf::Gltf::from_reader_without_validation(file)
+            .and_then(validated)
             .map_err(|e| Error(format!("cannot load scene '{name}': {e}")))?;
         from_import(&name, import(&name, gltf, Some(base))?)
     })
+}
+
+/// gltf's validation, less its refusal of the required extensions that this loader reads
+/// though gltf does not (`KHR_mesh_quantization`: `gltf_attributes` reads its integers).
+fn validated(gltf: gltf::Gltf) -> gltf::Result<gltf::Gltf> {
+    let gltf::Gltf { document, blob } = gltf;
+    let mut json = document.into_json();
+    json.extensions_required
+        .retain(|e| !READ_BEYOND_GLTF.contains(&e.as_str()));
+    let document = gltf::Document::from_json(json)?;
+    Ok(gltf::Gltf { document, blob })
 }
 
 /// gltf's `import`, but an image that cannot be read (a file that is not there, an
@@ -239,7 +261,8 @@ fn import(name: &str, gltf: gltf::Gltf, base: Option<&Path>) -> Result<Imported>
 /// are embedded as data URIs) as a scene.
 pub fn parse_gltf_bytes(name: &str, bytes: &[u8]) -> Result<Scene> {
     guarded(name, || {
-        let gltf = gltf::Gltf::from_slice(bytes)
+        let gltf = gltf::Gltf::from_slice_without_validation(bytes)
+            .and_then(validated)
             .map_err(|e| Error(format!("cannot load scene '{name}': {e}")))?;
         from_import(name, import(name, gltf, None)?)
     })
@@ -520,65 +543,45 @@ fn from_import(name: &str, imported: Imported) -> Result<Scene> {
                 continue;
             }
             let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-            // An accessor the primitive names but the reader cannot read lies (partly)
-            // outside its buffer view: refused, as reading on without it would draw
-            // other triangles (indices) or other shading (normals, ...) than the file's.
-            let at = format!("mesh {} primitive {}", mesh.index(), prim.index());
-            let broken = |what: &str, accessor: gltf::Accessor| {
-                Error(format!(
-                    "scene '{name}': {at}: its {what} accessor {} reaches past the end of its \
-                     buffer view or buffer",
-                    accessor.index()
-                ))
-            };
-            let attribute = |semantic: Semantic| prim.get(&semantic);
-            let Some(positions) = reader.read_positions() else {
-                if let Some(a) = attribute(Semantic::Positions) {
-                    return Err(broken("POSITION", a));
-                }
+            // An accessor the primitive names but that cannot be read (outside its buffer
+            // view, or of a type its attribute does not take) is refused: reading on
+            // without it would draw other triangles (indices) or other shading (normals,
+            // ...) than the file's.
+            let at = format!(
+                "scene '{name}': mesh {} primitive {}",
+                mesh.index(),
+                prim.index()
+            );
+            let Some(positions) = vertex::vectors::<3>(&prim, Semantic::Positions, &buffers, &at)?
+            else {
                 ignored.push("primitives without POSITION");
                 continue;
             };
             let positions: Vec<Vec3> = positions
+                .into_iter()
                 .map(|p| world.transform_point3(Vec3::from(p)))
                 .collect();
-            let normals: Option<Vec<Vec3>> = reader.read_normals().map(|n| {
-                n.map(|n| (normal_matrix * Vec3::from(n)).normalize_or_zero())
-                    .collect()
-            });
-            for (semantic, what, read) in [
-                (Semantic::Normals, "NORMAL", normals.is_some()),
-                (
-                    Semantic::TexCoords(0),
-                    "TEXCOORD_0",
-                    reader.read_tex_coords(0).is_some(),
-                ),
-                (
-                    Semantic::Tangents,
-                    "TANGENT",
-                    reader.read_tangents().is_some(),
-                ),
-                (
-                    Semantic::Colors(0),
-                    "COLOR_0",
-                    reader.read_colors(0).is_some(),
-                ),
-            ] {
-                if let (Some(a), false) = (attribute(semantic), read) {
-                    return Err(broken(what, a));
-                }
+            let normals: Option<Vec<Vec3>> =
+                vertex::vectors::<3>(&prim, Semantic::Normals, &buffers, &at)?.map(|n| {
+                    n.into_iter()
+                        .map(|n| (normal_matrix * Vec3::from(n)).normalize_or_zero())
+                        .collect()
+                });
+            if let (Some(a), None) = (prim.get(&Semantic::Colors(0)), reader.read_colors(0)) {
+                return Err(vertex::unreadable(&at, "COLOR_0", &a, vertex::OUTSIDE));
             }
             let material_index = prim.material().index();
             // glTF's v runs down the image; our textures put v = 0 at the bottom row.
             let uv_map = material_index.map_or(Affine2::IDENTITY, |i| uv_maps[i]);
-            let uvs: Option<Vec<Vec2>> = reader.read_tex_coords(0).map(|t| {
-                t.into_f32()
-                    .map(|uv| {
-                        let t = uv_map.transform_point2(Vec2::from(uv));
-                        Vec2::new(t.x, 1.0 - t.y)
-                    })
-                    .collect()
-            });
+            let uvs: Option<Vec<Vec2>> =
+                vertex::vectors::<2>(&prim, Semantic::TexCoords(0), &buffers, &at)?.map(|t| {
+                    t.into_iter()
+                        .map(|uv| {
+                            let t = uv_map.transform_point2(Vec2::from(uv));
+                            Vec2::new(t.x, 1.0 - t.y)
+                        })
+                        .collect()
+                });
             // A mask is read at texture coordinates: a primitive without them can still
             // read a constant one (BLEND by the factor alone).
             let constant_mask = material_index
@@ -587,14 +590,16 @@ fn from_import(name: &str, imported: Imported) -> Result<Scene> {
             // TANGENT: directions like positions' (not normals'); a mirroring transform
             // turns the bitangent's side.
             let mirror = if flips { -1.0 } else { 1.0 };
-            let tangents: Option<Vec<Vec4>> = reader.read_tangents().map(|t| {
-                t.map(|[x, y, z, w]| {
-                    world
-                        .transform_vector3(Vec3::new(x, y, z))
-                        .extend(w * mirror)
-                })
-                .collect()
-            });
+            let tangents: Option<Vec<Vec4>> =
+                vertex::vectors::<4>(&prim, Semantic::Tangents, &buffers, &at)?.map(|t| {
+                    t.into_iter()
+                        .map(|[x, y, z, w]| {
+                            world
+                                .transform_vector3(Vec3::new(x, y, z))
+                                .extend(w * mirror)
+                        })
+                        .collect()
+                });
             // COLOR_0 is linear (the specification), alpha ignored.
             let colours: Option<Vec<Vec3>> = reader
                 .read_colors(0)
@@ -602,7 +607,9 @@ fn from_import(name: &str, imported: Imported) -> Result<Scene> {
             let indices: Vec<u32> = match (reader.read_indices(), prim.indices()) {
                 (Some(i), _) => i.into_u32().collect(),
                 (None, None) => (0..positions.len() as u32).collect(),
-                (None, Some(a)) => return Err(broken("indices", a)),
+                (None, Some(a)) => {
+                    return Err(vertex::unreadable(&at, "indices", &a, vertex::OUTSIDE))
+                }
             };
             if material_index.is_some_and(|i| invisible[i]) {
                 continue;

@@ -12,6 +12,7 @@ pub mod environment;
 pub mod error;
 pub mod fuzz;
 pub mod generate;
+pub mod gltf_attributes;
 pub mod gltf_lights;
 pub mod gltf_scene;
 pub mod gpu;
