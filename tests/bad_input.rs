@@ -960,6 +960,61 @@ fn scenes_too_large_for_memory_are_refused_with_numbers() {
     assert!(!obj.exists());
 }
 
+/// A glTF of one triangle's 48 bytes whose POSITION is a sparse accessor without a buffer
+/// view (zeros but for the triangle) of `vertices` vertices, its mesh placed by `copies`
+/// nodes: a small file that names as many triangles as it likes.
+fn gltf_naming_many_triangles(vertices: u64, copies: usize) -> String {
+    // Three f32 corners and the u32 indices 0, 1, 2.
+    const TRIANGLE: &str = "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAEAAAACAAAA";
+    let nodes = vec![r#"{"mesh":0}"#; copies].join(",");
+    let roots: Vec<String> = (0..copies).map(|i| i.to_string()).collect();
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[{}]}}],"nodes":[{nodes}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+"accessors":[{{"componentType":5126,"count":{vertices},"type":"VEC3","min":[0,0,0],"max":[1,1,0],
+"sparse":{{"count":3,"indices":{{"bufferView":1,"componentType":5125}},"values":{{"bufferView":0}}}}}}],
+"bufferViews":[{{"buffer":0,"byteLength":36}},{{"buffer":0,"byteOffset":36,"byteLength":12}}],
+"buffers":[{{"byteLength":48,"uri":"data:application/octet-stream;base64,{TRIANGLE}"}}]}}"#,
+        roots.join(",")
+    )
+}
+
+/// A glTF file of a few bytes that names billions of vertices (a sparse accessor's count)
+/// or a mesh placed by many nodes is refused with the numbers before any geometry is read;
+/// it was an abort in an allocation (24 GB for the first), or the machine's memory.
+#[test]
+fn small_gltf_files_that_name_huge_geometry_are_refused_with_numbers() {
+    // The same file naming few vertices loads: the test's file is a valid scene.
+    let small = write(
+        "sparse_small.gltf",
+        gltf_naming_many_triangles(3, 2).as_bytes(),
+    );
+    let o = render_scene(&small, &["--integrator", "ao"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // 2·10⁹ vertices in one accessor; 200 nodes each placing 100k triangles (20M).
+    for (file, vertices, copies) in [
+        ("sparse_huge.gltf", 2_000_000_000, 1),
+        ("instanced_huge.gltf", 300_000, 200),
+    ] {
+        let path = write(
+            file,
+            gltf_naming_many_triangles(vertices, copies).as_bytes(),
+        );
+        let o = Command::new("sh")
+            .arg("-c")
+            .arg(
+                "ulimit -v 2000000 && exec \"$0\" render --backend cpu --scene \"$1\" --out \"$2\"",
+            )
+            .arg(env!("CARGO_BIN_EXE_runner"))
+            .arg(&path)
+            .arg(dir().join("never.png"))
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .output()
+            .unwrap();
+        assert_fails_with(&o, "triangles) needs about");
+    }
+}
+
 #[test]
 fn stacks_of_duplicate_triangles_load() {
     // 20,000 copies of one triangle (exporters write such stacks): their BVH was 2,857

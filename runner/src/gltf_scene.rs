@@ -477,16 +477,9 @@ fn from_import(name: &str, imported: Imported) -> Result<Scene> {
     // become small emitters once the scene's size is known (`gltf_lights`).
     let mut sun: Option<SceneSun> = None;
     let mut point_lights: Vec<PointLight> = Vec::new();
-    let mut stack: Vec<(gltf::Node, Mat4)> = scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
-    // Node graphs are trees by the specification; a file that says otherwise must not hang.
-    let mut visited = 0usize;
-    while let Some((node, parent)) = stack.pop() {
-        visited += 1;
-        if visited > doc.nodes().len() * 4 + 16 {
-            bail!("scene '{name}': the node hierarchy is not a tree");
-        }
-        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
-        stack.extend(node.children().map(|c| (c, world)));
+    let placed = placed_nodes(name, &doc, scene)?;
+    check_memory(name, &placed)?;
+    for (node, world) in placed {
         if let (None, Some(cam)) = (camera, node.camera()) {
             if let gltf::camera::Projection::Perspective(p) = cam.projection() {
                 let eye = world.transform_point3(Vec3::ZERO);
@@ -689,6 +682,59 @@ fn from_import(name: &str, imported: Imported) -> Result<Scene> {
     scene.camera = camera;
     scene.sun = sun;
     Ok(scene)
+}
+
+/// The scene's nodes with their world transforms, each parent before its children (in the
+/// order the loader has always visited them: the first camera and sun found are kept).
+fn placed_nodes<'a>(
+    name: &str,
+    doc: &'a gltf::Document,
+    scene: gltf::Scene<'a>,
+) -> Result<Vec<(gltf::Node<'a>, Mat4)>> {
+    let mut placed = Vec::new();
+    let mut stack: Vec<(gltf::Node, Mat4)> = scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+    while let Some((node, parent)) = stack.pop() {
+        // Node graphs are trees by the specification; a file that says otherwise (a node
+        // that is its own ancestor, or a child of many) must neither hang nor multiply.
+        if placed.len() > doc.nodes().len() * 4 + 16 {
+            bail!("scene '{name}': the node hierarchy is not a tree");
+        }
+        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        stack.extend(node.children().map(|c| (c, world)));
+        placed.push((node, world));
+    }
+    Ok(placed)
+}
+
+/// Bytes a primitive's vertex arrays hold while it is read: positions, normals, tangents,
+/// texture coordinates and colours (12 + 12 + 16 + 8 + 12).
+const BYTES_PER_GLTF_VERTEX: u64 = 60;
+
+/// Refuses, before reading any geometry, a scene whose triangles cannot fit in memory: a
+/// small file can name many (a mesh placed by many nodes, or a sparse accessor without a
+/// buffer view, whose count alone says how many vertices it has). Counts as the loader
+/// reads: the triangle lists' indices (or vertices) over 3.
+fn check_memory(name: &str, placed: &[(gltf::Node, Mat4)]) -> Result<()> {
+    let mut triangles = 0u64;
+    let mut largest_primitive = 0u64;
+    for mesh in placed.iter().filter_map(|(node, _)| node.mesh()) {
+        for prim in mesh.primitives() {
+            if prim.mode() != gltf::mesh::Mode::Triangles {
+                continue;
+            }
+            let vertices = prim.get(&Semantic::Positions).map_or(0, |a| a.count()) as u64;
+            let corners = prim.indices().map_or(vertices, |a| a.count() as u64);
+            triangles = triangles.saturating_add(corners / 3);
+            let bytes = (vertices * BYTES_PER_GLTF_VERTEX).saturating_add(corners * 4);
+            largest_primitive = largest_primitive.max(bytes);
+        }
+    }
+    let per_triangle = crate::memory::BYTES_PER_SCENE_TRIANGLE
+        + std::mem::size_of::<kernels::types::TriangleShading>() as u64;
+    crate::memory::check_scene(
+        &format!("scene '{name}' ({triangles} triangles)"),
+        triangles as f64 * per_triangle as f64 + largest_primitive as f64,
+    )
 }
 
 /// The diagonal of the box around the triangles and the lights (1 for a single light).
