@@ -776,15 +776,14 @@ fn extensions_the_loader_does_not_read_are_named() {
     assert!(!stderr.contains("KHR_materials_volume is not"), "{stderr}");
 }
 
-/// The colour of each quadrant of a glTF floor (u left to right, v top to bottom in the
-/// image, as glTF's texture space) textured with a 16×16 image of four solid quadrants
-/// (red, green / blue, white) under a white sky, with `transform` as the base colour
-/// texture's KHR_texture_transform. Returns the dominant colour of each image quadrant,
-/// row by row, as 'r', 'g', 'b' or 'w'.
-fn transformed_quadrants(d: &Path, transform: &str) -> Vec<char> {
-    const N: u32 = 16;
-    let quadrants = image::RgbaImage::from_fn(N, N, |x, y| {
-        image::Rgba(match (x < N / 2, y < N / 2) {
+/// A glTF floor (u left to right, v top to bottom in the image, as glTF's texture space;
+/// the view spans both from 0.1 to 0.9) textured with an `n`×`n` image of four solid
+/// quadrants (red, green / blue, white) under a white sky, with `transform` as the base
+/// colour texture's KHR_texture_transform and `sampler` (JSON) as its sampler: the
+/// rendered 32×32 image.
+fn quadrants_floor(d: &Path, n: u32, transform: &str, sampler: &str) -> runner::output::Image {
+    let quadrants = image::RgbaImage::from_fn(n, n, |x, y| {
+        image::Rgba(match (x < n / 2, y < n / 2) {
             (true, true) => [255, 0, 0, 255],
             (false, true) => [0, 255, 0, 255],
             (true, false) => [0, 0, 255, 255],
@@ -802,9 +801,27 @@ fn transformed_quadrants(d: &Path, transform: &str) -> Vec<char> {
         &material,
         &["quadrants.png"],
     );
+    let json = std::fs::read_to_string(&scene).unwrap();
+    let textures = r#""textures":[{"source":0}]"#;
+    assert!(json.contains(textures));
+    let with_sampler =
+        format!(r#""textures":[{{"source":0,"sampler":0}}],"samplers":[{{{sampler}}}]"#);
+    std::fs::write(&scene, json.replace(textures, &with_sampler)).unwrap();
     let args = common::floor_view(32, 4, &["--integrator", "mis", "--sky", "1,1,1"]);
     let (image, stderr) = render(&scene, &d.join("floor.exr"), &common::strs(&args));
     assert!(!stderr.contains("not supported"), "{stderr}");
+    image
+}
+
+/// The dominant colour of each quadrant of `quadrants_floor`'s 16×16 texture, read at the
+/// image's quarters (u, v ≈ ¼, ¾), row by row, as 'r', 'g', 'b' or 'w'.
+fn transformed_quadrants(d: &Path, transform: &str) -> Vec<char> {
+    sampled_quadrants(d, transform, "")
+}
+
+/// `transformed_quadrants` through `sampler`.
+fn sampled_quadrants(d: &Path, transform: &str, sampler: &str) -> Vec<char> {
+    let image = quadrants_floor(d, 16, transform, sampler);
     // The view spans u and v from 0.1 to 0.9: pixels 6 and 25 of 32 are at ≈ ¼ and ¾.
     let at = |x: u32, y: u32| image.pixels[(y * image.width + x) as usize];
     let (lo, hi) = (6, 25);
@@ -822,6 +839,46 @@ fn transformed_quadrants(d: &Path, transform: &str) -> Vec<char> {
             }
         })
         .collect()
+}
+
+/// glTF samplers: wrapS and wrapT (REPEAT, CLAMP_TO_EDGE, MIRRORED_REPEAT) per axis, and
+/// magFilter NEAREST (pixel art, voxel models), where every texture used to repeat and
+/// blend. Scaled by 2.5, the quarters read the texture at 0.66 and 1.84: repeating 0.84,
+/// clamped 1, mirrored 0.16.
+#[test]
+fn samplers_wrap_and_filter_as_the_file_says() {
+    let d = dir("gltf_samplers");
+    let scaled = r#","extensions":{"KHR_texture_transform":{"scale":[2.5,2.5]}}"#;
+    let (repeat, clamp, mirror) = (10497, 33071, 33648);
+    let wraps = |s: u32, t: u32| format!(r#""wrapS":{s},"wrapT":{t}"#);
+    assert_eq!(
+        sampled_quadrants(&d, scaled, &wraps(repeat, repeat)),
+        ['w', 'w', 'w', 'w']
+    );
+    assert_eq!(
+        sampled_quadrants(&d, scaled, &wraps(mirror, clamp)),
+        ['w', 'b', 'w', 'b']
+    );
+    assert_eq!(
+        sampled_quadrants(&d, scaled, &wraps(clamp, mirror)),
+        ['w', 'w', 'g', 'g']
+    );
+    // A 2×2 texture over 32 pixels: bilinear blends red into green over the half of the
+    // row between the texels' centres; nearest has one pixel of mixed colour, where the
+    // border between the texels crosses it (antialiasing).
+    let mixed_in_row = |sampler: &str| {
+        let image = quadrants_floor(&d, 2, "", sampler);
+        (0..image.width)
+            .map(|x| image.pixels[(6 * image.width + x) as usize])
+            .filter(|c| {
+                let c = *c / c.max_element();
+                c.x > 0.05 && c.y > 0.05
+            })
+            .count()
+    };
+    let (linear, nearest) = (mixed_in_row(""), mixed_in_row(r#""magFilter":9728"#));
+    assert!(linear >= 12, "{linear} pixels blend");
+    assert!(nearest <= 1, "{nearest} pixels blend");
 }
 
 /// KHR_texture_transform moves, turns and scales the texture as the Khronos sample

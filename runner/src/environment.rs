@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use glam::Vec3;
-use kernels::types::{TextureInfo, TEXTURE_RGBE};
+use kernels::types::{TextureInfo, TEXTURE_RGBE, TEXTURE_WRAP_V, WRAP_CLAMP};
 
 use crate::bail;
 use crate::error::Result;
@@ -102,7 +102,9 @@ pub fn add_map(
         offset,
         width,
         height,
-        format: TEXTURE_RGBE,
+        // Around in longitude; the poles' rows stay theirs (a repeating v blended the
+        // zenith with the nadir's row within half a row of either pole).
+        format: TEXTURE_RGBE | WRAP_CLAMP << TEXTURE_WRAP_V,
     });
     attributes.textures.len() as u32 - 1
 }

@@ -52,6 +52,26 @@ const READ_EXTENSIONS: [&str; 9] = [
 /// The extensions of READ_EXTENSIONS that gltf refuses where a file requires them.
 const READ_BEYOND_GLTF: [&str; 1] = ["KHR_mesh_quantization"];
 
+/// A glTF texture sampler as the sampler bits of `TextureInfo::format`: its wrap modes,
+/// and nearest filtering where magnification asks for it (pixel art and voxel models do;
+/// minification is left to the many samples a pixel takes).
+fn sampler_bits(sampler: &gltf::texture::Sampler) -> u32 {
+    use gltf::texture::{MagFilter, WrappingMode};
+    use kernels::types::{
+        TEXTURE_NEAREST, TEXTURE_WRAP_U, TEXTURE_WRAP_V, WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT,
+    };
+    let wrap = |mode: WrappingMode| match mode {
+        WrappingMode::Repeat => WRAP_REPEAT,
+        WrappingMode::ClampToEdge => WRAP_CLAMP,
+        WrappingMode::MirroredRepeat => WRAP_MIRROR,
+    };
+    let nearest = match sampler.mag_filter() {
+        Some(MagFilter::Nearest) => TEXTURE_NEAREST,
+        _ => 0,
+    };
+    wrap(sampler.wrap_s()) << TEXTURE_WRAP_U | wrap(sampler.wrap_t()) << TEXTURE_WRAP_V | nearest
+}
+
 /// A texture's `KHR_texture_transform` as the map of glTF texture coordinates it
 /// specifies: scale, then rotation, then offset. The rotation turns u towards −v, as the
 /// Khronos sample viewer, three.js and bevy read it (the extension's GLSL snippet is
@@ -330,7 +350,9 @@ fn from_import(name: &str, imported: Imported) -> Result<Scene> {
         let blend = m.alpha_mode() == gltf::material::AlphaMode::Blend;
         // Each image is decoded once per way it is read: as sRGB colour (base colour,
         // emission) or as linear data (normal, metallic-roughness).
-        let mut texture = |image: usize, linear: bool, what: &str| {
+        // Each use reads it through its texture's sampler.
+        let mut texture = |texture: gltf::Texture, linear: bool, what: &str| {
+            let image = texture.source().index();
             let cache = if linear {
                 &mut data_of_image
             } else {
@@ -338,7 +360,7 @@ fn from_import(name: &str, imported: Imported) -> Result<Scene> {
             };
             // An image that was not loaded has had its warning.
             let loaded = images[image].as_ref()?;
-            *cache[image].get_or_insert_with(|| match rgba8(loaded) {
+            let decoded = (*cache[image].get_or_insert_with(|| match rgba8(loaded) {
                 Some(rgba) if linear => Some(crate::textures::add_linear(&mut attributes, &rgba)),
                 Some(rgba) => Some(crate::textures::add(&mut attributes, &rgba)),
                 None => {
@@ -348,7 +370,13 @@ fn from_import(name: &str, imported: Imported) -> Result<Scene> {
                     ));
                     None
                 }
-            })
+            }))?;
+            let sampler = sampler_bits(&texture.sampler());
+            Some(crate::textures::with_sampler(
+                &mut attributes,
+                decoded,
+                sampler,
+            ))
         };
         // The base colour: specular-glossiness's diffuse where the material has it.
         let sg = m.pbr_specular_glossiness();
@@ -365,12 +393,16 @@ fn from_import(name: &str, imported: Imported) -> Result<Scene> {
         {
             ignored.push("specular-glossiness textures");
         }
-        let base_image = base_info.as_ref().map(|i| i.texture().source().index());
-        if let Some(t) = base_image.and_then(|i| texture(i, false, "base colour texture")) {
+        let base_texture = base_info.as_ref().map(|i| i.texture());
+        let base_image = base_texture.as_ref().map(|t| t.source().index());
+        if let Some(t) = base_texture
+            .clone()
+            .and_then(|t| texture(t, false, "base colour texture"))
+        {
             mat.albedo_texture = t;
         }
         if let Some(normal) = m.normal_texture() {
-            if let Some(t) = texture(normal.texture().source().index(), true, "normal texture") {
+            if let Some(t) = texture(normal.texture(), true, "normal texture") {
                 mat.normal_texture = t;
                 mat.normal_scale = Some(normal.scale())
                     .filter(|s| s.is_finite())
@@ -378,15 +410,14 @@ fn from_import(name: &str, imported: Imported) -> Result<Scene> {
             }
         }
         if let Some(info) = pbr.metallic_roughness_texture() {
-            let image = info.texture().source().index();
-            if let Some(t) = texture(image, true, "metallic-roughness texture") {
+            if let Some(t) = texture(info.texture(), true, "metallic-roughness texture") {
                 if mat.kind != kernels::bsdf::BSDF_DIELECTRIC {
                     mat.metal_rough_texture = t;
                 }
             }
         }
         if let Some(info) = m.emissive_texture() {
-            if let Some(t) = texture(info.texture().source().index(), false, "emissive texture") {
+            if let Some(t) = texture(info.texture(), false, "emissive texture") {
                 mat.emission_texture = t;
             }
         }
@@ -414,7 +445,12 @@ fn from_import(name: &str, imported: Imported) -> Result<Scene> {
                 None => None,
             };
             if let Some(mask) = mask {
-                mat.opacity_texture = crate::textures::add(&mut attributes, &mask);
+                // Read as the base colour is, through its sampler.
+                let sampler = base_texture
+                    .as_ref()
+                    .map_or(0, |t| sampler_bits(&t.sampler()));
+                let mask = crate::textures::add(&mut attributes, &mask);
+                mat.opacity_texture = crate::textures::with_sampler(&mut attributes, mask, sampler);
                 if blend {
                     attributes.coverage_masks.push(mat.opacity_texture);
                 }

@@ -104,6 +104,19 @@ pub fn add_linear(attributes: &mut SurfaceAttributes, image: &image::RgbaImage) 
     add_as(attributes, image, kernels::types::TEXTURE_LINEAR8)
 }
 
+/// Texture `texture` read through `sampler` (`TextureInfo::format`'s sampler bits: wrap
+/// modes, nearest filtering): the same texels under one more table entry, or `texture`
+/// itself for the default sampler (bilinear, repeating).
+pub fn with_sampler(attributes: &mut SurfaceAttributes, texture: u32, sampler: u32) -> u32 {
+    if sampler == 0 {
+        return texture;
+    }
+    let mut info = attributes.textures[texture as usize];
+    info.format = (info.format & kernels::types::TEXTURE_FORMAT) | sampler;
+    attributes.textures.push(info);
+    attributes.textures.len() as u32 - 1
+}
+
 /// Whether an image is a tangent-space normal map rather than a height (bump) map: MTL's
 /// `map_Bump` names either (Blender writes its normal maps there). A normal map's texels
 /// decode (2c − 1) to unit vectors whose z leads (they lean less than 45° from the

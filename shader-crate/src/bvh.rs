@@ -9,7 +9,7 @@ use crate::math::{max, min, vec3};
 use crate::rng::pcg_hash;
 use crate::sampling::orthonormal_basis;
 use crate::skip::Skip;
-use crate::texture::sample_bilinear;
+use crate::texture::sample_texture;
 use crate::types::cwbvh_meta::{FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
 use crate::types::{
     at, load, set_at, Bvh2Node, CwBvhNode, CwBvhPlanes, CwBvhSlotNode, GBufferTexel, Light,
@@ -168,7 +168,7 @@ impl Cutouts<'_> {
         }
         let mask = load(self.materials, tri.material as usize).opacity_texture;
         let a = load(self.shading, tri.shading_index() as usize);
-        let alpha = sample_bilinear(self.textures, self.texels, mask, a.uv_at(b1, b2)).w;
+        let alpha = sample_texture(self.textures, self.texels, mask, a.uv_at(b1, b2)).w;
         if tri.alpha_blended() {
             alpha > coverage_threshold(tri, b1, b2)
         } else {
@@ -373,13 +373,12 @@ impl<'a> SceneBuffers<'a> {
         let texture = if m.albedo_texture == INVALID {
             s.colour
         } else {
-            s.colour
-                * sample_bilinear(self.textures, self.texels, m.albedo_texture, s.uv).truncate()
+            s.colour * sample_texture(self.textures, self.texels, m.albedo_texture, s.uv).truncate()
         };
         let mut kind = m.kind;
         let mut alpha = m.alpha;
         if m.metal_rough_texture != INVALID {
-            let t = sample_bilinear(self.textures, self.texels, m.metal_rough_texture, s.uv);
+            let t = sample_texture(self.textures, self.texels, m.metal_rough_texture, s.uv);
             alpha *= t.y * t.y;
             if m.metallic * t.z >= METAL_THRESHOLD {
                 kind = BSDF_CONDUCTOR;
@@ -408,8 +407,7 @@ impl<'a> SceneBuffers<'a> {
             return m.emission();
         }
         let uv = load(self.shading, tri.shading_index() as usize).uv_at(b1, b2);
-        m.emission()
-            * sample_bilinear(self.textures, self.texels, m.emission_texture, uv).truncate()
+        m.emission() * sample_texture(self.textures, self.texels, m.emission_texture, uv).truncate()
     }
 }
 
@@ -1290,7 +1288,7 @@ pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
             s.uv = a.uv_at(b1, b2);
             let m = load(scene.materials, tri.material as usize);
             if m.normal_texture != INVALID {
-                let texel = sample_bilinear(scene.textures, scene.texels, m.normal_texture, s.uv);
+                let texel = sample_texture(scene.textures, scene.texels, m.normal_texture, s.uv);
                 shading = if m.normal_map_kind == NORMAL_MAP_HEIGHT {
                     let slope = height_slope(scene, m.normal_texture, s.uv, texel.x);
                     bump_mapped(&tri, &a, base, slope * m.normal_scale)
@@ -1319,7 +1317,7 @@ pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
 fn height_slope(scene: &SceneBuffers, texture: u32, uv: Vec2, here: f32) -> Vec2 {
     let info = load(scene.textures, texture as usize);
     let step = Vec2::new(1.0 / info.width as f32, 1.0 / info.height as f32);
-    let height = |at: Vec2| sample_bilinear(scene.textures, scene.texels, texture, at).x;
+    let height = |at: Vec2| sample_texture(scene.textures, scene.texels, texture, at).x;
     Vec2::new(
         (height(uv + Vec2::new(step.x, 0.0)) - here) / step.x,
         (height(uv + Vec2::new(0.0, step.y)) - here) / step.y,

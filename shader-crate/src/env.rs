@@ -10,7 +10,7 @@ use spirv_std::num_traits::Float;
 use crate::bvh::SceneBuffers;
 use crate::glam::{Vec2, Vec3};
 use crate::math::{vec3, PI};
-use crate::texture::sample_bilinear;
+use crate::texture::sample_texture;
 use crate::types::{load, FrameParams, ENV_UP_Z, INVALID};
 
 /// Texture coordinates of direction `dir` (unit) in an equirectangular map whose up axis is
@@ -130,7 +130,7 @@ pub fn escaped_radiance(scene: &SceneBuffers, params: &FrameParams, dir: Vec3) -
         return sky + sun;
     }
     let uv = equirect_uv(dir, params.env_up == ENV_UP_Z, params.env_rotation);
-    sky * sample_bilinear(scene.textures, scene.texels, params.env_texture, uv).truncate() + sun
+    sky * sample_texture(scene.textures, scene.texels, params.env_texture, uv).truncate() + sun
 }
 
 /// The part of `escaped_radiance` no light sampling draws: a constant sky (a map's

@@ -5,7 +5,10 @@
 use spirv_std::num_traits::Float;
 
 use crate::glam::{Vec2, Vec4};
-use crate::types::{load, TextureInfo, TEXTURE_LINEAR8, TEXTURE_RGBE};
+use crate::types::{
+    load, TextureInfo, TEXTURE_FORMAT, TEXTURE_LINEAR8, TEXTURE_NEAREST, TEXTURE_RGBE,
+    TEXTURE_WRAP_U, TEXTURE_WRAP_V, WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT,
+};
 
 /// sRGB transfer function → linear (IEC 61966-2-1).
 pub fn srgb_to_linear(c: f32) -> f32 {
@@ -36,11 +39,12 @@ pub fn rgbe_to_linear(w: u32) -> Vec4 {
 /// Texel (x, y) of a texture, decoded: linear RGB and alpha.
 fn texel(texels: &[u32], info: &TextureInfo, x: u32, y: u32) -> Vec4 {
     let w = load(texels, (info.offset + y * info.width + x) as usize);
-    if info.format == TEXTURE_RGBE {
+    let format = info.format & TEXTURE_FORMAT;
+    if format == TEXTURE_RGBE {
         return rgbe_to_linear(w);
     }
     let byte = |shift: u32| ((w >> shift) & 0xff) as f32 / 255.0;
-    if info.format == TEXTURE_LINEAR8 {
+    if format == TEXTURE_LINEAR8 {
         return Vec4::new(byte(0), byte(8), byte(16), byte(24));
     }
     Vec4::new(
@@ -52,32 +56,70 @@ fn texel(texels: &[u32], info: &TextureInfo, x: u32, y: u32) -> Vec4 {
 }
 
 /// `i` wrapped into 0..n (texture repeat), for any integer `i`.
-fn wrap(i: i32, n: u32) -> u32 {
+fn repeat(i: i32, n: u32) -> u32 {
     let n = n as i32;
     // `%` without its panic (as `math::div_rem`, for a signed i): n > 0 here.
     let r = i.checked_rem(n).unwrap_or(0);
     (if r < 0 { r + n } else { r }) as u32
 }
 
-/// Bilinear lookup of texture `index` at `uv`, repeating outside [0, 1]. v = 0 is the
-/// bottom row of the image (the OBJ and OpenGL convention), texel centres at half
-/// integers. Filtering happens on linear values.
-pub fn sample_bilinear(textures: &[TextureInfo], texels: &[u32], index: u32, uv: Vec2) -> Vec4 {
+/// A texture coordinate along one axis of `n` texels under wrap mode `wrap` (`flip`: the
+/// axis runs the other way in the image, as v does): the two texels to blend and the
+/// second's weight, or with `nearest` the texel the coordinate falls in (twice, weight 0).
+fn axis(t: f32, n: u32, wrap: u32, flip: bool, nearest: bool) -> (u32, u32, f32) {
+    // Into [0, 1] first, so that huge coordinates keep their fraction in f32.
+    let t = if wrap == WRAP_CLAMP {
+        t.clamp(0.0, 1.0)
+    } else if wrap == WRAP_MIRROR {
+        let r = t - 2.0 * (0.5 * t).floor();
+        if r > 1.0 {
+            2.0 - r
+        } else {
+            r
+        }
+    } else {
+        t - t.floor()
+    };
+    let t = if flip { 1.0 - t } else { t };
+    let last = n as i32 - 1;
+    if nearest {
+        let i = ((t * n as f32) as i32).max(0).min(last) as u32;
+        return (i, i, 0.0);
+    }
+    // Texel centres at half integers.
+    let x = t * n as f32 - 0.5;
+    let x0 = x.floor();
+    let (f, x0) = (x - x0, x0 as i32);
+    if wrap == WRAP_REPEAT {
+        (repeat(x0, n), repeat(x0 + 1, n), f)
+    } else {
+        // Clamped, and mirrored at the edge (where the mirror image's next texel is the
+        // edge texel itself).
+        (
+            x0.max(0).min(last) as u32,
+            (x0 + 1).max(0).min(last) as u32,
+            f,
+        )
+    }
+}
+
+/// Lookup of texture `index` at `uv` through its sampler (`TextureInfo::format`): bilinear
+/// unless it asks for the nearest texel, repeating outside [0, 1] unless it asks to clamp
+/// or mirror. v = 0 is the bottom row of the image (the OBJ and OpenGL convention).
+/// Filtering happens on linear values.
+pub fn sample_texture(textures: &[TextureInfo], texels: &[u32], index: u32, uv: Vec2) -> Vec4 {
     let info = load(textures, index as usize);
     if info.width == 0 || info.height == 0 {
         return Vec4::ONE;
     }
     let uv = if uv.is_finite() { uv } else { Vec2::ZERO };
-    // Into [0, 1) first, so that huge coordinates keep their fraction in f32.
-    let u = uv.x - uv.x.floor();
-    let v = uv.y - uv.y.floor();
-    let x = u * info.width as f32 - 0.5;
-    let y = (1.0 - v) * info.height as f32 - 0.5;
-    let (x0, y0) = (x.floor(), y.floor());
-    let (fx, fy) = (x - x0, y - y0);
-    let (x0, y0) = (x0 as i32, y0 as i32);
-    let (xa, xb) = (wrap(x0, info.width), wrap(x0 + 1, info.width));
-    let (ya, yb) = (wrap(y0, info.height), wrap(y0 + 1, info.height));
+    let nearest = info.format & TEXTURE_NEAREST != 0;
+    let wrap = |shift: u32| (info.format >> shift) & 3;
+    let (xa, xb, fx) = axis(uv.x, info.width, wrap(TEXTURE_WRAP_U), false, nearest);
+    let (ya, yb, fy) = axis(uv.y, info.height, wrap(TEXTURE_WRAP_V), true, nearest);
+    if nearest {
+        return texel(texels, &info, xa, ya);
+    }
     let top = texel(texels, &info, xa, ya) * (1.0 - fx) + texel(texels, &info, xb, ya) * fx;
     let bottom = texel(texels, &info, xa, yb) * (1.0 - fx) + texel(texels, &info, xb, yb) * fx;
     top * (1.0 - fy) + bottom * fy
@@ -109,7 +151,7 @@ mod tests {
             format: 0,
         }];
         let texels = [rgba(0, 0, 0), rgba(255, 255, 255)];
-        let at = |u: f32| sample_bilinear(&info, &texels, 0, Vec2::new(u, 0.5)).x;
+        let at = |u: f32| sample_texture(&info, &texels, 0, Vec2::new(u, 0.5)).x;
         assert!(at(0.25).abs() < 1e-6, "left texel centre");
         assert!((at(0.75) - 1.0).abs() < 1e-6, "right texel centre");
         assert!((at(0.5) - 0.5).abs() < 1e-6, "half way, in linear values");
@@ -119,8 +161,65 @@ mod tests {
         // The seam at u = 0 blends the last and the first texel.
         assert!((at(0.0) - 0.5).abs() < 1e-6);
         assert_eq!(
-            sample_bilinear(&info, &texels, 0, Vec2::new(f32::NAN, 0.0)).x,
+            sample_texture(&info, &texels, 0, Vec2::new(f32::NAN, 0.0)).x,
             at(0.0)
+        );
+    }
+
+    /// A 2×1 texture, left black and right white, under `sampler` (`TextureInfo::format`'s
+    /// sampler bits), read at u along its middle row.
+    fn black_white(sampler: u32, u: f32) -> f32 {
+        let info = [TextureInfo {
+            offset: 0,
+            width: 2,
+            height: 1,
+            format: sampler,
+        }];
+        let texels = [rgba(0, 0, 0), rgba(255, 255, 255)];
+        sample_texture(&info, &texels, 0, Vec2::new(u, 0.5)).x
+    }
+
+    #[test]
+    fn clamped_textures_keep_their_edge_texels_outside() {
+        let clamp = WRAP_CLAMP << TEXTURE_WRAP_U;
+        let at = |u: f32| black_white(clamp, u);
+        // Beyond either edge the edge texel, with no blend across the seam at u = 0 / 1.
+        for (u, want) in [(-3.0, 0.0), (0.0, 0.0), (1.0, 1.0), (7.5, 1.0), (0.5, 0.5)] {
+            assert!((at(u) - want).abs() < 1e-6, "u {u}: {} not {want}", at(u));
+        }
+    }
+
+    #[test]
+    fn mirrored_textures_reverse_every_other_repeat() {
+        let mirror = WRAP_MIRROR << TEXTURE_WRAP_U;
+        let at = |u: f32| black_white(mirror, u);
+        // In [0, 1] as repeat; in [1, 2] reversed (1.25 reads 0.75); [2, 3] as [0, 1].
+        for (u, want) in [
+            (0.25, 0.0),
+            (0.75, 1.0),
+            (1.25, 1.0),
+            (1.75, 0.0),
+            (2.25, 0.0),
+        ] {
+            assert!((at(u) - want).abs() < 1e-6, "u {u}: {} not {want}", at(u));
+        }
+        // Negative coordinates mirror too (-0.25 reads 0.25); the edges meet their own
+        // texel, not the opposite one.
+        assert!(at(-0.25).abs() < 1e-6);
+        assert!((at(1.0) - 1.0).abs() < 1e-6 && at(0.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn nearest_filtering_reads_one_texel() {
+        let at = |u: f32| black_white(TEXTURE_NEAREST, u);
+        // Either side of the texels' border at u = 0.5, no blend; repeat as before.
+        assert_eq!(at(0.49), 0.0);
+        assert_eq!(at(0.51), 1.0);
+        assert_eq!(at(1.2), 0.0);
+        assert_eq!(at(-0.2), 1.0);
+        assert_eq!(
+            black_white(TEXTURE_NEAREST | WRAP_CLAMP << TEXTURE_WRAP_U, 1.0),
+            1.0
         );
     }
 
@@ -134,8 +233,8 @@ mod tests {
             format: 0,
         }];
         let texels = [rgba(255, 0, 0), rgba(0, 0, 255)];
-        let bottom = sample_bilinear(&info, &texels, 0, Vec2::new(0.5, 0.25));
-        let top = sample_bilinear(&info, &texels, 0, Vec2::new(0.5, 0.75));
+        let bottom = sample_texture(&info, &texels, 0, Vec2::new(0.5, 0.25));
+        let top = sample_texture(&info, &texels, 0, Vec2::new(0.5, 0.75));
         assert!(bottom.z > 0.99 && bottom.x < 0.01, "{bottom}");
         assert!(top.x > 0.99 && top.z < 0.01, "{top}");
     }

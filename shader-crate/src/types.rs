@@ -416,7 +416,9 @@ impl TriangleShading {
 }
 
 /// One texture in the texel buffer: `width × height` texels from `offset` on, row by row
-/// from the top, one 32-bit word each in `format`.
+/// from the top, one 32-bit word each in `format`'s low byte (`TEXTURE_FORMAT`); its
+/// higher bits are the sampler (`TEXTURE_WRAP_U`, `TEXTURE_WRAP_V`, `TEXTURE_NEAREST`).
+/// Textures of one image with different samplers share its texels.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
@@ -434,6 +436,19 @@ pub const TEXTURE_SRGB8: u32 = 0;
 pub const TEXTURE_RGBE: u32 = 1;
 /// RGBA, 8 bits each, read as stored (data, not colour: normal maps).
 pub const TEXTURE_LINEAR8: u32 = 2;
+/// The bits of `TextureInfo::format` that are the texel format.
+pub const TEXTURE_FORMAT: u32 = 0xff;
+/// Where the wrap mode along u and along v is in `TextureInfo::format` (two bits each):
+/// how a coordinate outside [0, 1] reads the texture (glTF's sampler `wrapS`, `wrapT`).
+pub const TEXTURE_WRAP_U: u32 = 8;
+pub const TEXTURE_WRAP_V: u32 = 10;
+/// Wrap modes: the texture repeats (the default), its edge texels go on, or it repeats
+/// mirrored every other time.
+pub const WRAP_REPEAT: u32 = 0;
+pub const WRAP_CLAMP: u32 = 1;
+pub const WRAP_MIRROR: u32 = 2;
+/// The texel a point falls in, unfiltered (glTF's `magFilter` NEAREST: pixel art, voxels).
+pub const TEXTURE_NEAREST: u32 = 1 << 12;
 
 /// One emissive triangle in the light table, with its entry of the alias table that picks
 /// lights in proportion to their power (Walker/Vose): slot `i` keeps itself with
