@@ -162,6 +162,41 @@ fn map_kd_gives_the_albedo_at_the_texture_coordinates() {
     }
 }
 
+/// A map statement's options: `-s` and `-o` place the texture (uv read at s·uv + o),
+/// `-clamp on` keeps its edge texels beyond [0, 1]; and a file name with a space (Blender
+/// writes names as they are) is found. Before, the name's last word was taken as the file,
+/// and the options were read for `-bm` alone.
+#[test]
+fn map_options_scale_offset_and_clamp_the_texture() {
+    let d = dir("surfaces_map_options");
+    // The checker of `map_kd_gives_the_albedo_at_the_texture_coordinates`.
+    let texels: [[u8; 4]; 4] = [
+        [255, 0, 0, 255],
+        [0, 255, 0, 255],
+        [0, 0, 255, 255],
+        [128, 128, 128, 255],
+    ];
+    let png = image::RgbaImage::from_raw(2, 2, texels.concat()).unwrap();
+    png.save(d.join("check er.png")).unwrap();
+    // The view spans uv 0.1..0.9; scaled by ¼ and moved right by ¾ that is u' 0.775..0.975,
+    // v' 0.025..0.225: from the bottom right (grey) texel's centre outwards, where a
+    // repeating texture would blend in its opposite edges (up to 45%).
+    let scene = textured_floor(&d, "-s 0.25 0.25 -o 0.75 0 -clamp on check er.png");
+    let (image, stderr) = render(
+        &scene,
+        &d.join("t.exr"),
+        &["--integrator", "nee", "--sky", "1,1,1", "--spp", "4"],
+    );
+    assert!(!stderr.contains("warning: texture"), "{stderr}");
+    let grey = kernels::texture::srgb_to_linear(128.0 / 255.0);
+    let worst = image
+        .pixels
+        .iter()
+        .map(|p| (*p - Vec3::splat(grey)).abs().max_element())
+        .fold(0.0, f32::max);
+    assert!(worst < 1e-3, "a pixel {worst} off the grey texel");
+}
+
 #[test]
 fn a_missing_texture_is_a_warning_and_kd_stays() {
     let d = dir("surfaces_missing_texture");

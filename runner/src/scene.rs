@@ -737,6 +737,8 @@ fn parse_obj(
     }
     let mut warnings = Vec::new();
     let mut attributes = SurfaceAttributes::default();
+    // Each material's texture coordinate map (`-s`, `-o`): its maps', when they agree.
+    let mut uv_maps: Vec<glam::Affine2> = Vec::new();
     let mut materials: Vec<Material> = match mtl_result {
         Ok(mtls) => {
             warnings.extend(unknown_material_warnings(name, text, &mtls));
@@ -762,7 +764,8 @@ fn parse_obj(
                            key: &str,
                            material: &str,
                            otherwise: &str| {
-                let file = crate::textures::map_file_name(statement?);
+                let statement = crate::textures::parse_map_statement(statement?);
+                let file = statement.file;
                 if file.is_empty() {
                     return None;
                 }
@@ -771,7 +774,7 @@ fn parse_obj(
                     MapUse::Mask => "\0mask",
                     MapUse::Normal | MapUse::MaybeNormal => "\0normal",
                 };
-                *loaded.entry(format!("{file}{tag}")).or_insert_with(|| match load_texture(&file) {
+                let texture = *loaded.entry(format!("{file}{tag}")).or_insert_with(|| match load_texture(&file) {
                     Ok(image) => match use_ {
                         MapUse::Colour => Some(crate::textures::add(&mut attributes, &image)),
                         MapUse::Mask => Some(crate::textures::add(
@@ -794,8 +797,18 @@ fn parse_obj(
                         ));
                         None
                     }
-                })
+                });
+                // `-clamp on`: the texture's edges go on outside [0, 1].
+                let clamp = kernels::types::WRAP_CLAMP;
+                let sampler = if statement.clamp {
+                    clamp << kernels::types::TEXTURE_WRAP_U
+                        | clamp << kernels::types::TEXTURE_WRAP_V
+                } else {
+                    0
+                };
+                texture.map(|t| crate::textures::with_sampler(&mut attributes, t, sampler))
             };
+            let mut disagreeing = 0;
             let mut materials: Vec<Material> = mtls
                 .iter()
                 .map(|m| {
@@ -830,7 +843,7 @@ fn parse_obj(
                     {
                         material.normal_texture = index;
                         material.normal_scale = statement
-                            .and_then(crate::textures::bump_multiplier)
+                            .and_then(|s| crate::textures::parse_map_statement(s).bump_multiplier)
                             .unwrap_or(1.0);
                         if height_maps.borrow().contains(&index) {
                             material.normal_map_kind = kernels::types::NORMAL_MAP_HEIGHT;
@@ -844,9 +857,23 @@ fn parse_obj(
                             material.emission = [1.0; 3];
                         }
                     }
+                    let maps: Vec<glam::Affine2> = [diffuse, mask, statement, glow]
+                        .into_iter()
+                        .flatten()
+                        .map(|s| crate::textures::parse_map_statement(s).uv_map())
+                        .collect();
+                    let uv_map = maps.first().copied().unwrap_or(glam::Affine2::IDENTITY);
+                    disagreeing += usize::from(maps.iter().any(|t| *t != uv_map));
+                    uv_maps.push(uv_map);
                     material
                 })
                 .collect();
+            if disagreeing > 0 {
+                warnings.push(format!(
+                    "materials of '{name}': maps of one material with different -s or -o in \
+                     {disagreeing} material(s) are read with the first map's; not supported yet"
+                ));
+            }
             // `d` < 1 without a map: the same share covered everywhere (one texel).
             for (material, m) in materials.iter_mut().zip(&mtls) {
                 if let Some(d) = dissolve_coverage(m).filter(|_| m.dissolve_texture.is_none()) {
@@ -883,6 +910,10 @@ fn parse_obj(
             .map(|m| m as u32)
             .filter(|&m| m < default_material)
             .unwrap_or(default_material);
+        let uv_map = uv_maps
+            .get(material as usize)
+            .copied()
+            .unwrap_or(glam::Affine2::IDENTITY);
         let vertex = |i: u32| -> Result<Vec3> {
             let i = i as usize;
             match mesh.positions.get(3 * i..3 * i + 3) {
@@ -934,7 +965,8 @@ fn parse_obj(
                 let uvs = uv_indices.and_then(|ix| {
                     let uv = |c: usize| {
                         let k = 2 * ix[c] as usize;
-                        mesh.texcoords.get(k..k + 2).map(glam::Vec2::from_slice)
+                        let uv = mesh.texcoords.get(k..k + 2).map(glam::Vec2::from_slice)?;
+                        Some(uv_map.transform_point2(uv))
                     };
                     Some([uv(c[0])?, uv(c[1])?, uv(c[2])?])
                 });

@@ -12,14 +12,79 @@ use crate::scene::{read_input_file, SurfaceAttributes};
 pub const MAX_TEXTURE_FILE_BYTES: u64 = 512 << 20;
 pub const MAX_TEXTURE_TEXELS: u64 = 1 << 26;
 
-/// The file name of an MTL map statement: its last word (`map_Kd -bm 0.5 -s 2 2 a.png`
-/// carries options before it), with Windows separators made portable.
-pub fn map_file_name(statement: &str) -> String {
-    statement
-        .split_whitespace()
-        .last()
-        .unwrap_or("")
-        .replace('\\', "/")
+/// An MTL map statement (`map_Kd -s 4 4 -clamp on wood floor.png`): its options, then its
+/// file name, which may hold spaces (Blender writes names as they are).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MapStatement {
+    /// With Windows separators made portable.
+    pub file: String,
+    /// `-s` and `-o`: texture coordinates are read at `scale × uv + offset`.
+    pub scale: glam::Vec2,
+    pub offset: glam::Vec2,
+    /// `-clamp on`: coordinates outside [0, 1] read the edge instead of repeating.
+    pub clamp: bool,
+    /// `-bm`: a bump map's multiplier.
+    pub bump_multiplier: Option<f32>,
+}
+
+impl MapStatement {
+    /// Where a point with texture coordinates `uv` reads the map (`-s`, `-o`).
+    pub fn uv_map(&self) -> glam::Affine2 {
+        glam::Affine2::from_scale_angle_translation(self.scale, 0.0, self.offset)
+    }
+}
+
+/// Parse an MTL map statement: the options of the MTL specification, each with the values
+/// it takes (`-o`, `-s`, `-t` one to three numbers), and the rest of the line as the file
+/// name. Options not read here are skipped with their values.
+pub fn parse_map_statement(statement: &str) -> MapStatement {
+    let mut map = MapStatement {
+        file: String::new(),
+        scale: glam::Vec2::ONE,
+        offset: glam::Vec2::ZERO,
+        clamp: false,
+        bump_multiplier: None,
+    };
+    let mut rest = statement.trim_start();
+    let number = |word: &str| word.parse::<f32>().ok().filter(|v| v.is_finite());
+    while let Some(option) = rest.strip_prefix('-').and(rest.split_whitespace().next()) {
+        let mut words = rest.split_whitespace();
+        words.next();
+        let mut values: Vec<&str> = Vec::new();
+        let takes = match option {
+            "-blendu" | "-blendv" | "-cc" | "-clamp" | "-imfchan" | "-type" | "-bm" | "-boost"
+            | "-texres" => 1..=1,
+            "-mm" => 2..=2,
+            // -o, -s, -t and any other: the numbers that follow, up to three.
+            _ => 0..=3,
+        };
+        for word in words.by_ref() {
+            if values.len() == *takes.end()
+                || (values.len() >= *takes.start() && number(word).is_none())
+            {
+                break;
+            }
+            values.push(word);
+        }
+        let floats: Vec<f32> = values.iter().filter_map(|w| number(w)).collect();
+        match option {
+            "-s" if !floats.is_empty() => {
+                map.scale = glam::Vec2::new(floats[0], *floats.get(1).unwrap_or(&1.0))
+            }
+            "-o" if !floats.is_empty() => {
+                map.offset = glam::Vec2::new(floats[0], *floats.get(1).unwrap_or(&0.0))
+            }
+            "-clamp" => map.clamp = values.first() == Some(&"on"),
+            "-bm" => map.bump_multiplier = floats.first().copied(),
+            _ => {}
+        }
+        // Past the option and its values, to the next word.
+        for word in std::iter::once(option).chain(values.iter().copied()) {
+            rest = rest.strip_prefix(word).unwrap_or(rest).trim_start();
+        }
+    }
+    map.file = rest.trim_end().replace('\\', "/");
+    map
 }
 
 /// The paths a texture named `name` in an MTL beside `dir` may be at: as written, relative
@@ -136,17 +201,6 @@ pub fn is_normal_map(image: &image::RgbaImage) -> bool {
     normal_like as f64 >= SHARE * (image.width() as f64 * image.height() as f64).max(1.0)
 }
 
-/// The `-bm` value of an MTL map statement (its bump multiplier), if it has one.
-pub fn bump_multiplier(statement: &str) -> Option<f32> {
-    let words: Vec<&str> = statement.split_whitespace().collect();
-    let at = words.iter().position(|w| *w == "-bm")?;
-    words
-        .get(at + 1)?
-        .parse::<f32>()
-        .ok()
-        .filter(|v| v.is_finite())
-}
-
 fn add_as(attributes: &mut SurfaceAttributes, image: &image::RgbaImage, format: u32) -> u32 {
     let offset = attributes.texels.len() as u32;
     attributes.texels.extend(
@@ -166,6 +220,33 @@ fn add_as(attributes: &mut SurfaceAttributes, image: &image::RgbaImage, format: 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec2;
+
+    #[test]
+    fn map_statements_keep_spaces_in_file_names_and_read_their_options() {
+        let plain = parse_map_statement("textures\\wood floor.png");
+        assert_eq!(plain.file, "textures/wood floor.png");
+        assert_eq!(
+            (plain.scale, plain.offset, plain.clamp),
+            (Vec2::ONE, Vec2::ZERO, false)
+        );
+        let m = parse_map_statement("-s 4 2 1 -o 0.5 -clamp on -bm 0.3 -imfchan l my map.png ");
+        assert_eq!(m.file, "my map.png");
+        assert_eq!(m.scale, Vec2::new(4.0, 2.0));
+        assert_eq!(m.offset, Vec2::new(0.5, 0.0));
+        assert!(m.clamp);
+        assert_eq!(m.bump_multiplier, Some(0.3));
+        assert_eq!(m.uv_map().transform_point2(Vec2::ONE), Vec2::new(4.5, 2.0));
+        // A file name of digits after an option of up to three numbers, and options this
+        // loader does not read, with their values.
+        let m = parse_map_statement("-mm 0 1 -t 1 1 -s 3 2024.jpg");
+        assert_eq!(
+            (m.file.as_str(), m.scale),
+            ("2024.jpg", Vec2::new(3.0, 1.0))
+        );
+        assert!(!parse_map_statement("-clamp off a.png").clamp);
+        assert_eq!(parse_map_statement("n.png").bump_multiplier, None);
+    }
 
     #[test]
     fn normal_maps_are_told_from_height_maps() {
@@ -178,16 +259,5 @@ mod tests {
             let grey = image::RgbaImage::from_pixel(4, 4, image::Rgba([level, level, level, 255]));
             assert!(!is_normal_map(&grey), "grey {level}");
         }
-        assert_eq!(bump_multiplier("-bm 0.3 n.png"), Some(0.3));
-        assert_eq!(bump_multiplier("n.png"), None);
-    }
-
-    #[test]
-    fn map_statements_give_their_file() {
-        assert_eq!(map_file_name("wood.png"), "wood.png");
-        assert_eq!(
-            map_file_name("-bm 0.5 -s 2 2 1 tex\\wood.png"),
-            "tex/wood.png"
-        );
     }
 }
