@@ -117,10 +117,8 @@ fn textured_floor(dir: &Path, map: &str) -> PathBuf {
     path
 }
 
-#[test]
-fn map_kd_gives_the_albedo_at_the_texture_coordinates() {
-    let d = dir("surfaces_texture");
-    // 2x2 texels, top row red and green, bottom row blue and mid grey (sRGB 128).
+/// A 2×2 texture: top row red and green, bottom row blue and mid grey (sRGB 128).
+fn save_checker(path: &Path) {
     let texels: [[u8; 4]; 4] = [
         [255, 0, 0, 255],
         [0, 255, 0, 255],
@@ -128,18 +126,30 @@ fn map_kd_gives_the_albedo_at_the_texture_coordinates() {
         [128, 128, 128, 255],
     ];
     let png = image::RgbaImage::from_raw(2, 2, texels.concat()).unwrap();
-    std::fs::create_dir_all(d.join("tex")).unwrap();
-    png.save(d.join("tex/checker.png")).unwrap();
-    // Options before the name and a Windows path, as exporters write them.
-    let scene = textured_floor(&d, "-bm 1 tex\\checker.png");
-    // Under a white sky and nothing else, one bounce sees the sky in every direction:
-    // the radiance is exactly the albedo, with no noise.
+    png.save(path).unwrap();
+}
+
+/// `scene` (`textured_floor`) under a white sky and nothing else, where one bounce sees the
+/// sky in every direction: each pixel's radiance is exactly the albedo, with no noise.
+/// Every texture is found.
+fn albedo_image(d: &Path, scene: &Path) -> runner::output::Image {
     let (image, stderr) = render(
-        &scene,
+        scene,
         &d.join("t.exr"),
         &["--integrator", "nee", "--sky", "1,1,1", "--spp", "4"],
     );
     assert!(!stderr.contains("warning: texture"), "{stderr}");
+    image
+}
+
+#[test]
+fn map_kd_gives_the_albedo_at_the_texture_coordinates() {
+    let d = dir("surfaces_texture");
+    std::fs::create_dir_all(d.join("tex")).unwrap();
+    save_checker(&d.join("tex/checker.png"));
+    // Options before the name and a Windows path, as exporters write them.
+    let scene = textured_floor(&d, "-bm 1 tex\\checker.png");
+    let image = albedo_image(&d, &scene);
     let grey = kernels::texture::srgb_to_linear(128.0 / 255.0);
     // Pixels over the texel centres (uv 0.25 / 0.75): 0.5 ± 0.5/tan(15°)/3 of the width.
     let at = |fx: f32, fy: f32| image.pixels[((fy * 64.0) as usize) * 64 + (fx * 64.0) as usize];
@@ -169,25 +179,12 @@ fn map_kd_gives_the_albedo_at_the_texture_coordinates() {
 #[test]
 fn map_options_scale_offset_and_clamp_the_texture() {
     let d = dir("surfaces_map_options");
-    // The checker of `map_kd_gives_the_albedo_at_the_texture_coordinates`.
-    let texels: [[u8; 4]; 4] = [
-        [255, 0, 0, 255],
-        [0, 255, 0, 255],
-        [0, 0, 255, 255],
-        [128, 128, 128, 255],
-    ];
-    let png = image::RgbaImage::from_raw(2, 2, texels.concat()).unwrap();
-    png.save(d.join("check er.png")).unwrap();
+    save_checker(&d.join("check er.png"));
     // The view spans uv 0.1..0.9; scaled by ¼ and moved right by ¾ that is u' 0.775..0.975,
     // v' 0.025..0.225: from the bottom right (grey) texel's centre outwards, where a
     // repeating texture would blend in its opposite edges (up to 45%).
     let scene = textured_floor(&d, "-s 0.25 0.25 -o 0.75 0 -clamp on check er.png");
-    let (image, stderr) = render(
-        &scene,
-        &d.join("t.exr"),
-        &["--integrator", "nee", "--sky", "1,1,1", "--spp", "4"],
-    );
-    assert!(!stderr.contains("warning: texture"), "{stderr}");
+    let image = albedo_image(&d, &scene);
     let grey = kernels::texture::srgb_to_linear(128.0 / 255.0);
     let worst = image
         .pixels

@@ -21,7 +21,10 @@ pub fn unreadable(primitive: &str, what: &str, accessor: &gltf::Accessor, why: &
 }
 
 /// The primitive's `semantic` attribute as `N` floats a vertex (`None`: it has none); an
-/// accessor that cannot be read is an error naming it (see `unreadable`).
+/// accessor that cannot be read is an error naming it (see `unreadable`). Normalized
+/// integers map to [0, 1] (unsigned) or [−1, 1] (signed) as glTF specifies; the others
+/// keep their whole numbers, which the node's transform (positions) or the texture
+/// transform (texture coordinates) scales back.
 pub fn vectors<const N: usize>(
     prim: &gltf::Primitive,
     semantic: Semantic,
@@ -38,33 +41,16 @@ where
     let Some(accessor) = prim.get(&semantic) else {
         return Ok(None);
     };
-    read(&accessor, buffers)
-        .map(Some)
-        .map_err(|why| unreadable(primitive, &semantic.to_string(), &accessor, &why))
-}
-
-/// The values of a vertex attribute's `accessor`, `N` floats each. Normalized integers map
-/// to [0, 1] (unsigned) or [−1, 1] (signed) as glTF specifies; the others keep their whole
-/// numbers, which the node's transform (positions) or the texture transform (texture
-/// coordinates) scales back. `Err` says why it cannot be read.
-fn read<const N: usize>(
-    accessor: &gltf::Accessor,
-    buffers: &[gltf::buffer::Data],
-) -> Result<Vec<[f32; N]>, String>
-where
-    [f32; N]: Item,
-    [i8; N]: Item,
-    [u8; N]: Item,
-    [i16; N]: Item,
-    [u16; N]: Item,
-{
+    let refuse = |why: &str| unreadable(primitive, &semantic.to_string(), &accessor, why);
     let dimensions = accessor.dimensions();
     if dimensions.multiplicity() != N || !is_vector(dimensions) {
-        return Err(format!(
+        let why = format!(
             "holds {} values where VEC{N} ones belong",
             type_name(dimensions)
-        ));
+        );
+        return Err(refuse(&why));
     }
+    let accessor = &accessor;
     let normalized = accessor.normalized();
     let values = match accessor.data_type() {
         DataType::F32 => dequantized(accessor, buffers, |x: f32| x),
@@ -85,10 +71,12 @@ where
         DataType::I16 => dequantized(accessor, buffers, |x: i16| f32::from(x)),
         DataType::U16 => dequantized(accessor, buffers, |x: u16| f32::from(x)),
         DataType::U32 => {
-            return Err("holds 32-bit integers, which glTF allows only for indices".into());
+            return Err(refuse(
+                "holds 32-bit integers, which glTF allows only for indices",
+            ));
         }
     };
-    values.ok_or_else(|| OUTSIDE.into())
+    values.map(Some).ok_or_else(|| refuse(OUTSIDE))
 }
 
 /// The accessor's items of `T`, each component through `to_f32`; `None` where they do
