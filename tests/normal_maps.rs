@@ -183,18 +183,20 @@ fn height_maps_tilt_the_floor_by_their_slope() {
         (false, Vec3::new(0.0, 1.0, -slope), "rising along +z"),
     ] {
         write_ramp(&d.join("ramp.png"), columns);
-        let (image, stderr) = render_cpu(
-            &obj_floor(&d, "map_Bump -bm 0.5 ramp.png"),
-            &d.join("r.exr"),
-            &strs(&view()),
-        );
-        assert!(!stderr.contains("ramp.png"), "{stderr}");
-        let expected = normal.normalize().dot(sun) / Vec3::Y.dot(sun);
-        let ratio = middle(&image) / middle(&flat);
-        assert!(
-            (ratio - expected).abs() < 0.01 * expected,
-            "{what}: {ratio} vs {expected}"
-        );
+        // Clamped or not (a clamped map is a texture of its own, still a height map).
+        for map in [
+            "map_Bump -bm 0.5 ramp.png",
+            "map_Bump -clamp on -bm 0.5 ramp.png",
+        ] {
+            let (image, stderr) = render_cpu(&obj_floor(&d, map), &d.join("r.exr"), &strs(&view()));
+            assert!(!stderr.contains("ramp.png"), "{stderr}");
+            let expected = normal.normalize().dot(sun) / Vec3::Y.dot(sun);
+            let ratio = middle(&image) / middle(&flat);
+            assert!(
+                (ratio - expected).abs() < 0.01 * expected,
+                "{what}, {map}: {ratio} vs {expected}"
+            );
+        }
     }
 }
 

@@ -806,7 +806,15 @@ fn parse_obj(
                 } else {
                     0
                 };
-                texture.map(|t| crate::textures::with_sampler(&mut attributes, t, sampler))
+                let read =
+                    texture.map(|t| crate::textures::with_sampler(&mut attributes, t, sampler));
+                // A height map stays one through its own sampler.
+                if let (Some(t), Some(read)) = (texture, read) {
+                    if height_maps.borrow().contains(&t) {
+                        height_maps.borrow_mut().insert(read);
+                    }
+                }
+                read
             };
             let mut disagreeing = 0;
             let mut materials: Vec<Material> = mtls
