@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use glam::Vec3;
-use kernels::types::{TextureInfo, TEXTURE_RGBE, TEXTURE_WRAP_V, WRAP_CLAMP};
+use kernels::types::{sampler, TextureInfo, TEXTURE_RGBE, WRAP_CLAMP, WRAP_REPEAT};
 
 use crate::bail;
 use crate::error::Result;
@@ -104,7 +104,7 @@ pub fn add_map(
         height,
         // Around in longitude; the poles' rows stay theirs (a repeating v blended the
         // zenith with the nadir's row within half a row of either pole).
-        format: TEXTURE_RGBE | WRAP_CLAMP << TEXTURE_WRAP_V,
+        format: TEXTURE_RGBE | sampler(WRAP_REPEAT, WRAP_CLAMP, false),
     });
     attributes.textures.len() as u32 - 1
 }

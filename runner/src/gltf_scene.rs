@@ -57,19 +57,14 @@ const READ_BEYOND_GLTF: [&str; 1] = ["KHR_mesh_quantization"];
 /// minification is left to the many samples a pixel takes).
 fn sampler_bits(sampler: &gltf::texture::Sampler) -> u32 {
     use gltf::texture::{MagFilter, WrappingMode};
-    use kernels::types::{
-        TEXTURE_NEAREST, TEXTURE_WRAP_U, TEXTURE_WRAP_V, WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT,
-    };
+    use kernels::types::{WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT};
     let wrap = |mode: WrappingMode| match mode {
         WrappingMode::Repeat => WRAP_REPEAT,
         WrappingMode::ClampToEdge => WRAP_CLAMP,
         WrappingMode::MirroredRepeat => WRAP_MIRROR,
     };
-    let nearest = match sampler.mag_filter() {
-        Some(MagFilter::Nearest) => TEXTURE_NEAREST,
-        _ => 0,
-    };
-    wrap(sampler.wrap_s()) << TEXTURE_WRAP_U | wrap(sampler.wrap_t()) << TEXTURE_WRAP_V | nearest
+    let nearest = sampler.mag_filter() == Some(MagFilter::Nearest);
+    kernels::types::sampler(wrap(sampler.wrap_s()), wrap(sampler.wrap_t()), nearest)
 }
 
 /// A texture's `KHR_texture_transform` as the map of glTF texture coordinates it

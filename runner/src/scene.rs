@@ -799,13 +799,12 @@ fn parse_obj(
                     }
                 });
                 // `-clamp on`: the texture's edges go on outside [0, 1].
-                let clamp = kernels::types::WRAP_CLAMP;
-                let sampler = if statement.clamp {
-                    clamp << kernels::types::TEXTURE_WRAP_U
-                        | clamp << kernels::types::TEXTURE_WRAP_V
+                let wrap = if statement.clamp {
+                    kernels::types::WRAP_CLAMP
                 } else {
-                    0
+                    kernels::types::WRAP_REPEAT
                 };
+                let sampler = kernels::types::sampler(wrap, wrap, false);
                 let read =
                     texture.map(|t| crate::textures::with_sampler(&mut attributes, t, sampler));
                 // A height map stays one through its own sampler.

@@ -450,6 +450,13 @@ pub const WRAP_MIRROR: u32 = 2;
 /// The texel a point falls in, unfiltered (glTF's `magFilter` NEAREST: pixel art, voxels).
 pub const TEXTURE_NEAREST: u32 = 1 << 12;
 
+/// The sampler bits of `TextureInfo::format`: wrap modes along u and v, and whether to read
+/// the nearest texel instead of filtering.
+pub const fn sampler(wrap_u: u32, wrap_v: u32, nearest: bool) -> u32 {
+    let filter = if nearest { TEXTURE_NEAREST } else { 0 };
+    wrap_u << TEXTURE_WRAP_U | wrap_v << TEXTURE_WRAP_V | filter
+}
+
 /// One emissive triangle in the light table, with its entry of the alias table that picks
 /// lights in proportion to their power (Walker/Vose): slot `i` keeps itself with
 /// probability `threshold`, else goes to `alias`. `pdf` is the probability that power
