@@ -67,6 +67,8 @@ pub struct SurfaceAttributes {
     /// The opacity textures that hold coverage fractions (glTF BLEND), not cut-outs:
     /// traversal finds their surfaces solid with probability alpha (`ALPHA_BLENDED`).
     pub coverage_masks: Vec<u32>,
+    /// The entries `textures::with_sampler` made: (texture, sampler bits) to entry.
+    pub sampled: std::collections::HashMap<(u32, u32), u32>,
 }
 
 impl SurfaceAttributes {
@@ -755,49 +757,46 @@ fn parse_obj(
                     "materials of '{name}': {key} in {n} material(s) is not supported yet; ignored"
                 ));
             }
-            // Textures by file name and use: one decode however many materials share one.
-            let mut loaded: std::collections::HashMap<String, Option<u32>> = Default::default();
-            // The textures among them that are height (bump) maps, not normal maps.
-            let height_maps = std::cell::RefCell::new(std::collections::HashSet::new());
-            let mut map = |statement: Option<&str>,
+            // Textures by file name and use: one decode however many materials share one;
+            // each with whether it is a height (bump) map rather than a normal map.
+            let mut loaded: std::collections::HashMap<String, Option<(u32, bool)>> =
+                Default::default();
+            // A map statement's texture, read through its sampler, and whether it is a
+            // height map.
+            let mut map = |statement: Option<&crate::textures::MapStatement>,
                            use_: MapUse,
                            key: &str,
                            material: &str,
                            otherwise: &str| {
-                let statement = crate::textures::parse_map_statement(statement?);
-                let file = statement.file;
-                if file.is_empty() {
-                    return None;
-                }
+                let statement = statement.filter(|s| !s.file.is_empty())?;
+                let file = &statement.file;
                 let tag = match use_ {
                     MapUse::Colour => "",
                     MapUse::Mask => "\0mask",
                     MapUse::Normal | MapUse::MaybeNormal => "\0normal",
                 };
-                let texture = *loaded.entry(format!("{file}{tag}")).or_insert_with(|| match load_texture(&file) {
-                    Ok(image) => match use_ {
-                        MapUse::Colour => Some(crate::textures::add(&mut attributes, &image)),
-                        MapUse::Mask => Some(crate::textures::add(
-                            &mut attributes,
-                            &crate::textures::cutout_mask(image),
-                        )),
+                let (texture, is_height) = (*loaded.entry(format!("{file}{tag}")).or_insert_with(|| match load_texture(file) {
+                    Ok(image) => Some(match use_ {
+                        MapUse::Colour => (crate::textures::add(&mut attributes, &image), false),
+                        MapUse::Mask => (
+                            crate::textures::add(&mut attributes, &crate::textures::cutout_mask(image)),
+                            false,
+                        ),
+                        // A height map: its red channel, read linear.
                         MapUse::MaybeNormal if !crate::textures::is_normal_map(&image) => {
-                            // A height map: its red channel, read linear.
-                            let index = crate::textures::add_linear(&mut attributes, &image);
-                            height_maps.borrow_mut().insert(index);
-                            Some(index)
+                            (crate::textures::add_linear(&mut attributes, &image), true)
                         }
                         MapUse::Normal | MapUse::MaybeNormal => {
-                            Some(crate::textures::add_linear(&mut attributes, &image))
+                            (crate::textures::add_linear(&mut attributes, &image), false)
                         }
-                    },
+                    }),
                     Err(why) => {
                         warnings.push(format!(
                             "texture '{file}' ({key} of material '{material}') not loaded: {why}; {otherwise}"
                         ));
                         None
                     }
-                });
+                }))?;
                 // `-clamp on`: the texture's edges go on outside [0, 1].
                 let wrap = if statement.clamp {
                     kernels::types::WRAP_CLAMP
@@ -805,15 +804,8 @@ fn parse_obj(
                     kernels::types::WRAP_REPEAT
                 };
                 let sampler = kernels::types::sampler(wrap, wrap, false);
-                let read =
-                    texture.map(|t| crate::textures::with_sampler(&mut attributes, t, sampler));
-                // A height map stays one through its own sampler.
-                if let (Some(t), Some(read)) = (texture, read) {
-                    if height_maps.borrow().contains(&t) {
-                        height_maps.borrow_mut().insert(read);
-                    }
-                }
-                read
+                let read = crate::textures::with_sampler(&mut attributes, texture, sampler);
+                Some((read, is_height))
             };
             let mut disagreeing = 0;
             let mut materials: Vec<Material> = mtls
@@ -821,17 +813,22 @@ fn parse_obj(
                 .map(|m| {
                     let mut material = material_from_mtl(m);
                     let name = m.name.as_str();
+                    let parse = |s: Option<&str>| s.map(crate::textures::parse_map_statement);
                     // The texture is the albedo (exporters often write Kd 0 beside it).
-                    let diffuse = m.diffuse_texture.as_deref();
-                    if let Some(index) =
-                        map(diffuse, MapUse::Colour, "map_Kd", name, "using its Kd")
-                    {
+                    let diffuse = parse(m.diffuse_texture.as_deref());
+                    if let Some((index, _)) = map(
+                        diffuse.as_ref(),
+                        MapUse::Colour,
+                        "map_Kd",
+                        name,
+                        "using its Kd",
+                    ) {
                         material.albedo_texture = index;
                         material.albedo = [1.0; 3];
                     }
-                    let mask = m.dissolve_texture.as_deref();
-                    if let Some(index) = map(
-                        mask,
+                    let mask = parse(m.dissolve_texture.as_deref());
+                    if let Some((index, _)) = map(
+                        mask.as_ref(),
                         MapUse::Mask,
                         "map_d",
                         name,
@@ -842,32 +839,42 @@ fn parse_obj(
                     // `norm` (the PBR extension) is a normal map; `map_Bump`/`bump` one too
                     // when its texels say so (Blender writes normal maps there), else a
                     // height map displacing by `-bm` scene units at its brightest.
-                    let (statement, use_, key) = match m.unknown_param.get("norm") {
-                        Some(norm) => (Some(norm.as_str()), MapUse::Normal, "norm"),
-                        None => (m.normal_texture.as_deref(), MapUse::MaybeNormal, "map_Bump"),
+                    let (bump, use_, key) = match m.unknown_param.get("norm") {
+                        Some(norm) => (parse(Some(norm)), MapUse::Normal, "norm"),
+                        None => (
+                            parse(m.normal_texture.as_deref()),
+                            MapUse::MaybeNormal,
+                            "map_Bump",
+                        ),
                     };
-                    if let Some(index) = map(statement, use_, key, name, "its normals stay unbent")
+                    if let Some((index, is_height)) =
+                        map(bump.as_ref(), use_, key, name, "its normals stay unbent")
                     {
                         material.normal_texture = index;
-                        material.normal_scale = statement
-                            .and_then(|s| crate::textures::parse_map_statement(s).bump_multiplier)
-                            .unwrap_or(1.0);
-                        if height_maps.borrow().contains(&index) {
+                        material.normal_scale =
+                            bump.as_ref().and_then(|s| s.bump_multiplier).unwrap_or(1.0);
+                        if is_height {
                             material.normal_map_kind = kernels::types::NORMAL_MAP_HEIGHT;
                         }
                     }
                     // map_Ke: emission = Ke (1 when not given) × the texture.
-                    let glow = m.unknown_param.get("map_Ke").map(String::as_str);
-                    if let Some(index) = map(glow, MapUse::Colour, "map_Ke", name, "using its Ke") {
+                    let glow = parse(m.unknown_param.get("map_Ke").map(String::as_str));
+                    if let Some((index, _)) = map(
+                        glow.as_ref(),
+                        MapUse::Colour,
+                        "map_Ke",
+                        name,
+                        "using its Ke",
+                    ) {
                         material.emission_texture = index;
                         if m.emissive.is_none() {
                             material.emission = [1.0; 3];
                         }
                     }
-                    let maps: Vec<glam::Affine2> = [diffuse, mask, statement, glow]
-                        .into_iter()
+                    let maps: Vec<glam::Affine2> = [diffuse, mask, bump, glow]
+                        .iter()
                         .flatten()
-                        .map(|s| crate::textures::parse_map_statement(s).uv_map())
+                        .map(crate::textures::MapStatement::uv_map)
                         .collect();
                     let uv_map = maps.first().copied().unwrap_or(glam::Affine2::IDENTITY);
                     disagreeing += usize::from(maps.iter().any(|t| *t != uv_map));

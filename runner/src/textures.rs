@@ -170,16 +170,22 @@ pub fn add_linear(attributes: &mut SurfaceAttributes, image: &image::RgbaImage) 
 }
 
 /// Texture `texture` read through `sampler` (`TextureInfo::format`'s sampler bits: wrap
-/// modes, nearest filtering): the same texels under one more table entry, or `texture`
-/// itself for the default sampler (bilinear, repeating).
+/// modes, nearest filtering): the same texels under one more table entry, made once however
+/// many materials read them so, or `texture` itself for the default sampler (bilinear,
+/// repeating).
 pub fn with_sampler(attributes: &mut SurfaceAttributes, texture: u32, sampler: u32) -> u32 {
     if sampler == 0 {
         return texture;
     }
+    if let Some(&entry) = attributes.sampled.get(&(texture, sampler)) {
+        return entry;
+    }
     let mut info = attributes.textures[texture as usize];
     info.format = (info.format & kernels::types::TEXTURE_FORMAT) | sampler;
     attributes.textures.push(info);
-    attributes.textures.len() as u32 - 1
+    let entry = attributes.textures.len() as u32 - 1;
+    attributes.sampled.insert((texture, sampler), entry);
+    entry
 }
 
 /// Whether an image is a tangent-space normal map rather than a height (bump) map: MTL's
@@ -246,6 +252,40 @@ mod tests {
         );
         assert!(!parse_map_statement("-clamp off a.png").clamp);
         assert_eq!(parse_map_statement("n.png").bump_multiplier, None);
+    }
+
+    #[test]
+    fn a_texture_read_through_a_sampler_is_one_more_entry_however_often_asked() {
+        use kernels::types::{sampler, TEXTURE_FORMAT, WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT};
+        let mut attributes = SurfaceAttributes::default();
+        let image = image::RgbaImage::from_pixel(2, 2, image::Rgba([10, 20, 30, 255]));
+        let a = add(&mut attributes, &image);
+        let b = add_linear(&mut attributes, &image);
+        assert_eq!(
+            with_sampler(&mut attributes, a, sampler(WRAP_REPEAT, WRAP_REPEAT, false)),
+            a
+        );
+        let clamp = sampler(WRAP_CLAMP, WRAP_CLAMP, false);
+        let a_clamped = with_sampler(&mut attributes, a, clamp);
+        assert_eq!(with_sampler(&mut attributes, a, clamp), a_clamped);
+        // Another texture or another sampler is an entry of its own.
+        let b_clamped = with_sampler(&mut attributes, b, clamp);
+        let a_mirrored = with_sampler(&mut attributes, a, sampler(WRAP_MIRROR, WRAP_CLAMP, true));
+        let entries = [a, b, a_clamped, b_clamped, a_mirrored];
+        assert_eq!(attributes.textures.len(), entries.len());
+        for (i, &e) in entries.iter().enumerate() {
+            assert!(!entries[..i].contains(&e), "{entries:?}");
+        }
+        // The same texels and texel format, its own sampler bits.
+        let (t, tc) = (
+            attributes.textures[b as usize],
+            attributes.textures[b_clamped as usize],
+        );
+        assert_eq!(
+            (tc.offset, tc.width, tc.height),
+            (t.offset, t.width, t.height)
+        );
+        assert_eq!(tc.format, (t.format & TEXTURE_FORMAT) | clamp);
     }
 
     #[test]
