@@ -493,6 +493,311 @@ fn quantized_attributes_load_as_their_float_twins() {
     assert!(quantized.warnings.is_empty(), "{:?}", quantized.warnings);
 }
 
+/// The quad that `meshopt_quad` stores: corners, normals (two of them below z = 0, where
+/// the octahedral encoding folds), texture coordinates and two triangles.
+const QUAD_POSITIONS: [[f32; 3]; 4] = [
+    [0.0, 0.0, 0.0],
+    [1.0, 0.0, 0.0],
+    [1.0, 0.0, 1.0],
+    [0.0, 0.0, 1.0],
+];
+const QUAD_NORMALS: [[f32; 3]; 4] = [
+    [0.0, 1.0, 0.0],
+    [0.6, 0.8, 0.0],
+    [0.0, 0.6, -0.8],
+    [-0.48, 0.6, -0.64],
+];
+const QUAD_UVS: [[f32; 2]; 4] = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+const QUAD_INDICES: [u32; 6] = [0, 2, 1, 0, 3, 2];
+
+/// A unit vector in the extension's 8-bit octahedral encoding (x, y, then 1.0 = 127).
+fn octahedral_bytes(n: [f32; 3]) -> [u8; 4] {
+    let l1 = n[0].abs() + n[1].abs() + n[2].abs();
+    let (x, y) = (n[0] / l1, n[1] / l1);
+    let (x, y) = if n[2] >= 0.0 {
+        (x, y)
+    } else {
+        ((1.0 - y.abs()) * x.signum(), (1.0 - x.abs()) * y.signum())
+    };
+    let [x, y, one] = [x, y, 1.0].map(|c| (c * 127.0).round() as i8 as u8);
+    [x, y, one, 0]
+}
+
+/// Indices in the extension's mode 2 bitstream ("INDICES"): header, each index as a
+/// LEB128 delta from the previous one (baseline 0, zigzag in bits 1.., sign in bit 1), tail.
+fn index_sequence_bytes(indices: &[u32]) -> Vec<u8> {
+    let mut out = vec![0xd1];
+    let mut last = 0i64;
+    for &i in indices {
+        let delta = i as i64 - last;
+        last = i as i64;
+        let mut v = if delta >= 0 {
+            (delta as u64) << 2
+        } else {
+            ((!delta) as u64) << 2 | 2
+        };
+        loop {
+            let byte = (v & 0x7f) as u8;
+            v >>= 7;
+            if v == 0 {
+                out.push(byte);
+                break;
+            }
+            out.push(byte | 0x80);
+        }
+    }
+    out.extend([0; 4]);
+    out
+}
+
+/// The quad as a glTF, plain (`mode` None: f32 positions and normals, u16 indices) or with
+/// every view compressed by EXT_meshopt_compression (gltfpack's `-c`): positions through
+/// the exponential filter, normals as octahedral bytes, indices in `mode` ("TRIANGLES" or
+/// "INDICES"), decoding into a placeholder buffer that has no data (marked `fallback`, or
+/// with `fallback` false, only dataless). `placeholder_length` overrides its length.
+fn meshopt_quad(mode: Option<&str>, fallback: bool, placeholder_length: Option<u64>) -> String {
+    let f32s = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    let flat = |rows: &[[f32; 3]]| rows.iter().flatten().copied().collect::<Vec<f32>>();
+    let positions = f32s(&flat(&QUAD_POSITIONS));
+    let normals = match mode {
+        None => f32s(&flat(&QUAD_NORMALS)),
+        Some(_) => QUAD_NORMALS
+            .iter()
+            .flat_map(|&n| octahedral_bytes(n))
+            .collect(),
+    };
+    let uvs = f32s(&QUAD_UVS.concat());
+    let indices: Vec<u8> = QUAD_INDICES
+        .iter()
+        .flat_map(|&i| (i as u16).to_le_bytes())
+        .collect();
+    // (bytes, stride, count, filter) per view: positions, normals, uvs, indices.
+    let views = [
+        (positions, 12, 4, "EXPONENTIAL"),
+        (
+            normals,
+            if mode.is_some() { 4 } else { 12 },
+            4,
+            "OCTAHEDRAL",
+        ),
+        (uvs, 8, 4, "NONE"),
+        (indices, 2, 6, "NONE"),
+    ];
+    let (mut plain, mut packed, mut json_views) = (Vec::new(), Vec::new(), Vec::new());
+    for (k, (bytes, stride, count, filter)) in views.iter().enumerate() {
+        let offset = plain.len();
+        plain.extend(bytes);
+        plain.resize(plain.len().next_multiple_of(4), 0);
+        let stride_json = if k < 3 {
+            format!(r#","byteStride":{stride}"#)
+        } else {
+            String::new()
+        };
+        let ext = match mode {
+            None => String::new(),
+            Some(mode) => {
+                let (data, mode, filter) = if k == 3 {
+                    let data = match mode {
+                        "TRIANGLES" => meshopt::encode_index_buffer(&QUAD_INDICES, 4).unwrap(),
+                        _ => index_sequence_bytes(&QUAD_INDICES),
+                    };
+                    (data, mode, "NONE")
+                } else {
+                    let mut bytes = bytes.clone();
+                    if *filter == "EXPONENTIAL" {
+                        // Each position component v as 2^-3 · (8 v).
+                        bytes = flat(&QUAD_POSITIONS)
+                            .iter()
+                            .flat_map(|v| {
+                                ((-3i32 << 24) | ((v * 8.0) as i32 & 0xff_ffff)).to_le_bytes()
+                            })
+                            .collect();
+                    }
+                    let elements: Vec<[u8; 4]> =
+                        bytes.chunks(4).map(|c| c.try_into().unwrap()).collect();
+                    let data = match stride {
+                        4 => meshopt::encode_vertex_buffer(&elements).unwrap(),
+                        8 => meshopt::encode_vertex_buffer(
+                            &elements.chunks(2).map(|c| [c[0], c[1]]).collect::<Vec<_>>(),
+                        )
+                        .unwrap(),
+                        _ => meshopt::encode_vertex_buffer(
+                            &elements
+                                .chunks(3)
+                                .map(|c| [c[0], c[1], c[2]])
+                                .collect::<Vec<_>>(),
+                        )
+                        .unwrap(),
+                    };
+                    (data, "ATTRIBUTES", *filter)
+                };
+                let at = packed.len();
+                packed.extend(&data);
+                packed.resize(packed.len().next_multiple_of(4), 0);
+                format!(
+                    r#","extensions":{{"EXT_meshopt_compression":{{"buffer":1,"byteOffset":{at},"byteLength":{},"byteStride":{stride},"count":{count},"mode":"{mode}","filter":"{filter}"}}}}"#,
+                    data.len()
+                )
+            }
+        };
+        json_views.push(format!(
+            r#"{{"buffer":0,"byteOffset":{offset},"byteLength":{}{stride_json}{ext}}}"#,
+            bytes.len()
+        ));
+    }
+    let data_uri = |b: &[u8]| format!("data:application/octet-stream;base64,{}", base64(b));
+    let (normal_type, extensions, buffers) = match mode {
+        None => (
+            "5126,\"normalized\":false",
+            "",
+            format!(
+                r#"{{"byteLength":{},"uri":"{}"}}"#,
+                plain.len(),
+                data_uri(&plain)
+            ),
+        ),
+        Some(_) => {
+            let marked = if fallback {
+                r#","extensions":{"EXT_meshopt_compression":{"fallback":true}}"#
+            } else {
+                ""
+            };
+            let length = placeholder_length.unwrap_or(plain.len() as u64);
+            (
+                "5120,\"normalized\":true",
+                r#""extensionsUsed":["EXT_meshopt_compression","KHR_mesh_quantization"],"extensionsRequired":["EXT_meshopt_compression","KHR_mesh_quantization"],"#,
+                format!(
+                    r#"{{"byteLength":{length}{marked}}},{{"byteLength":{},"uri":"{}"}}"#,
+                    packed.len(),
+                    data_uri(&packed)
+                ),
+            )
+        }
+    };
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},{extensions}"scene":0,"scenes":[{{"nodes":[0]}}],
+"nodes":[{{"mesh":0}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"NORMAL":1,"TEXCOORD_0":2}},"indices":3}}]}}],
+"accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[0,0,0],"max":[1,0,1]}},
+{{"bufferView":1,"componentType":{normal_type},"count":4,"type":"VEC3"}},
+{{"bufferView":2,"componentType":5126,"count":4,"type":"VEC2"}},
+{{"bufferView":3,"componentType":5123,"count":6,"type":"SCALAR"}}],
+"bufferViews":[{}],"buffers":[{buffers}]}}"#,
+        json_views.join(",")
+    )
+}
+
+/// EXT_meshopt_compression (gltfpack's `-c`, a required extension there; before, gltf
+/// refused such files): each view decoded (vertex codec with the exponential and
+/// octahedral filters; triangle and index-sequence codecs) loads as the plain file does.
+#[test]
+fn meshopt_compressed_views_load_as_their_plain_twin() {
+    let load = |text: String| {
+        runner::gltf_scene::parse_gltf_bytes("quad.gltf", text.as_bytes())
+            .unwrap_or_else(|e| panic!("{e}"))
+    };
+    let plain = load(meshopt_quad(None, false, None));
+    assert_eq!(plain.triangles.len(), 2);
+    for (mode, fallback) in [("TRIANGLES", true), ("INDICES", false)] {
+        let packed = load(meshopt_quad(Some(mode), fallback, None));
+        assert!(packed.warnings.is_empty(), "{mode}: {:?}", packed.warnings);
+        assert_eq!(packed.triangles.len(), 2, "{mode}");
+        for (a, b) in corners(&packed).iter().zip(&corners(&plain)) {
+            for ((pa, na, ua), (pb, nb, ub)) in a.iter().zip(b) {
+                assert_eq!((pa, ua), (pb, ub), "{mode}");
+                // Octahedral bytes: within a few 127ths of each component.
+                let off = (Vec3::from(*na) - Vec3::from(*nb)).abs().max_element();
+                assert!(off < 0.03, "{mode}: normal {na:?} against {nb:?}");
+            }
+        }
+    }
+}
+
+/// A corner of a loaded triangle: position, normal, texture coordinates.
+type Corner = ([f32; 3], [f32; 3], [f32; 2]);
+
+/// The triangles of `scene` as their corners, each from its least position (the triangle
+/// codec may rotate a triangle's corners, keeping its winding), in order of their positions.
+fn corners(scene: &runner::scene::Scene) -> Vec<Vec<Corner>> {
+    let mut all: Vec<Vec<Corner>> = scene
+        .triangles
+        .iter()
+        .map(|t| {
+            let a = scene.attributes.shading[t.shading_index() as usize];
+            let p = [t.p0, t.p1, t.p2];
+            let mut c: Vec<Corner> = (0..3)
+                .map(|k| {
+                    let n = [a.normals[3 * k], a.normals[3 * k + 1], a.normals[3 * k + 2]];
+                    (p[k], n, [a.uvs[2 * k], a.uvs[2 * k + 1]])
+                })
+                .collect();
+            let least = (0..3)
+                .min_by(|&i, &j| c[i].0.partial_cmp(&c[j].0).unwrap())
+                .unwrap();
+            c.rotate_left(least);
+            c
+        })
+        .collect();
+    let positions = |c: &[Corner]| c.iter().map(|c| c.0).collect::<Vec<_>>();
+    all.sort_by(|a, b| positions(a).partial_cmp(&positions(b)).unwrap());
+    all
+}
+
+/// What a compressed view or its placeholder gets wrong is one error naming it.
+#[test]
+fn broken_meshopt_compression_is_one_error_naming_the_view() {
+    let error =
+        |text: String| match runner::gltf_scene::parse_gltf_bytes("quad.gltf", text.as_bytes()) {
+            Ok(_) => panic!("loaded"),
+            Err(e) => e.to_string(),
+        };
+    let text = meshopt_quad(Some("TRIANGLES"), true, None);
+    // A filter, a mode or a count the view's layout does not allow.
+    let e = error(text.replacen(
+        r#""mode":"ATTRIBUTES","filter":"EXPONENTIAL""#,
+        r#""mode":"ATTRIBUTES","filter":"QUATERNION""#,
+        1,
+    ));
+    assert!(
+        e.contains("its buffer view 0") && e.contains("byte stride of 12"),
+        "{e}"
+    );
+    let e = error(text.replacen(r#""mode":"TRIANGLES""#, r#""mode":"TRIANGLE""#, 1));
+    assert!(
+        e.contains("its buffer view 3") && e.contains("mode 'TRIANGLE'"),
+        "{e}"
+    );
+    let e = error(text.replacen(
+        r#""count":4,"mode":"ATTRIBUTES","filter":"NONE""#,
+        r#""count":5,"mode":"ATTRIBUTES","filter":"NONE""#,
+        1,
+    ));
+    assert!(
+        e.contains("its buffer view 2") && e.contains("5 elements of 8 bytes"),
+        "{e}"
+    );
+    let e = error(text.replacen(
+        r#""buffer":1,"byteOffset":0,"#,
+        r#""buffer":1,"byteOffset":100000,"#,
+        1,
+    ));
+    assert!(e.contains("lie outside buffer 1"), "{e}");
+    // A stream whose bytes are not the codec's (the positions' first three, header
+    // included, zeroed: the compressed buffer's first four base64 digits).
+    let at = text.rfind("base64,").unwrap() + "base64,".len();
+    let e = error(format!("{}AAAA{}", &text[..at], &text[at + 4..]));
+    assert!(
+        e.contains("its buffer view 0") && e.contains("cannot be decoded"),
+        "{e}"
+    );
+    // A placeholder of a petabyte: refused before anything that size is made.
+    let e = error(meshopt_quad(Some("TRIANGLES"), true, Some(1 << 50)));
+    assert!(
+        e.contains("its buffer 0") && e.contains("GB of memory"),
+        "{e}"
+    );
+}
+
 /// A .gltf whose buffer file is not beside it is one error naming that file (the importer
 /// says only "No such file or directory").
 #[test]

@@ -1,7 +1,8 @@
 //! glTF 2.0 scenes (`.gltf` with external or embedded buffers and images, `.glb`) through
 //! the `gltf` crate: the default scene's nodes with their transforms, triangle primitives
 //! with normals and texture coordinates (floats, or `KHR_mesh_quantization`'s integers:
-//! `gltf_attributes`), materials mapped onto our BSDF family, base
+//! `gltf_attributes`), any buffer view compressed by `EXT_meshopt_compression` decoded
+//! first (`gltf_meshopt`), materials mapped onto our BSDF family, base
 //! colour, normal, metallic-roughness and emissive textures (with `KHR_texture_transform`,
 //! one per material, baked into the texture coordinates), `KHR_lights_punctual` lights
 //! (see `gltf_lights`), and the first camera as the default view.
@@ -37,8 +38,9 @@ pub const MAX_GLTF_BYTES: u64 = 2 << 30;
 /// another gets one warning naming it (one it *requires* is refused by the importer).
 /// `KHR_materials_volume` is how glTF says a transmissive mesh is solid, which is what our
 /// dielectric always is.
-const READ_EXTENSIONS: [&str; 9] = [
+const READ_EXTENSIONS: [&str; 10] = [
     "KHR_mesh_quantization",
+    crate::gltf_meshopt::EXTENSION,
     "KHR_lights_punctual",
     "KHR_materials_pbrSpecularGlossiness",
     "KHR_materials_emissive_strength",
@@ -50,7 +52,7 @@ const READ_EXTENSIONS: [&str; 9] = [
 ];
 
 /// The extensions of READ_EXTENSIONS that gltf refuses where a file requires them.
-const READ_BEYOND_GLTF: [&str; 1] = ["KHR_mesh_quantization"];
+const READ_BEYOND_GLTF: [&str; 2] = ["KHR_mesh_quantization", crate::gltf_meshopt::EXTENSION];
 
 /// A glTF texture sampler as the sampler bits of `TextureInfo::format`: its wrap modes,
 /// and nearest filtering where magnification asks for it (pixel art and voxel models do;
@@ -207,7 +209,8 @@ pub fn load(path: &Path) -> Result<Scene> {
 }
 
 /// gltf's validation, less its refusal of the required extensions that this loader reads
-/// though gltf does not (`KHR_mesh_quantization`: `gltf_attributes` reads its integers).
+/// though gltf does not (`KHR_mesh_quantization`: `gltf_attributes` reads its integers;
+/// `EXT_meshopt_compression`: `import` decodes its views).
 fn validated(gltf: gltf::Gltf) -> gltf::Result<gltf::Gltf> {
     let gltf::Gltf { document, blob } = gltf;
     let mut json = document.into_json();
@@ -235,6 +238,12 @@ fn import(name: &str, gltf: gltf::Gltf, base: Option<&Path>) -> Result<Imported>
                 "cannot load scene '{name}': its buffer {}{file}",
                 buffer.index()
             );
+            if crate::gltf_meshopt::is_placeholder(&document, &buffer, blob.is_some()) {
+                // Room for the views decoded into it (below), checked first: its length is
+                // the file's word alone.
+                crate::memory::check(&its, buffer.length() as u64)?;
+                return Ok(gltf::buffer::Data(vec![0; buffer.length()]));
+            }
             let data = gltf::buffer::Data::from_source_and_blob(buffer.source(), base, &mut blob)
                 .map_err(|e| Error(format!("{its}: {e}")))?;
             // The check of gltf's `import_buffers`: accessors trust the stated length.
@@ -248,6 +257,9 @@ fn import(name: &str, gltf: gltf::Gltf, base: Option<&Path>) -> Result<Imported>
             Ok(data)
         })
         .collect::<Result<Vec<_>>>()?;
+    let mut buffers = buffers;
+    crate::gltf_meshopt::decode_views(&document, &mut buffers)
+        .map_err(|e| Error(format!("cannot load scene '{name}': {e}")))?;
     let mut warnings = Vec::new();
     let images = document
         .images()

@@ -14,6 +14,7 @@ pub mod fuzz;
 pub mod generate;
 pub mod gltf_attributes;
 pub mod gltf_lights;
+pub mod gltf_meshopt;
 pub mod gltf_scene;
 pub mod gpu;
 pub mod integrator;
