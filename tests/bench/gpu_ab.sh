@@ -30,10 +30,18 @@ args() { case $1 in
   mis-cornell) echo "--integrator mis --max-depth 8 --spp 1 --bvh-splits 0 --scene cornell-box" ;;
   nee-many) echo "--integrator nee --max-depth 2 --spp 1 --bvh-splits 0 --scene many-lights" ;;
   restir-many) echo "--integrator restir --max-depth 2 --spp 1 --bvh-splits 0 --scene many-lights" ;;
+  # textured_scene.py's terrain (colour + normal map, rough metal, sky.hdr): texture lookups
+  # on every path. Its files come as $DIR/textured.tar.xz (too large to carry unpacked).
+  mis-terrain | pt-terrain) echo "--integrator ${1%%-*} --max-depth 8 --spp 1 $(terrain)" ;;
   # KIND-NAME: KIND:NAME-1m, a suite scene
   ao-* | nee-* | pt-*) args "${1%%-*}:${1#*-}-1m" ;;
   *) echo "unknown workload $1" >&2; exit 2 ;;
 esac; }
+terrain() {
+  local t=$DIR/textured
+  [ -f "$t/terrain.obj" ] || tar -xJf "$t.tar.xz" -C "$DIR" || exit 2
+  echo "--scene $t/terrain.obj --env $t/sky.hdr --eye 0,7,13 --target 0,0,0"
+}
 bench() { # variant workload
   local v=$1 b env=() extra=()
   b=$(build "$v")
