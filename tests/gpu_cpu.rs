@@ -211,12 +211,13 @@ fn textures_and_vertex_normals_gpu_match_cpu() {
     // A textured floor with a different normal at each corner (interpolated across it), a
     // normal map bending it further and a checkered cut-out mask, an emitter whose emission
     // is textured, a back wall under a height (bump) map, under an emitter and an environment map with a sun: the
-    // texel buffer, the bilinear lookup, sRGB, linear and RGBE decoding, shading normals, the mask
+    // texel buffer, the bilinear and mip-level lookups, sRGB, linear and RGBE decoding, shading normals, the mask
     // test inside traversal and the map's importance sampling (NEE picks it half the time;
     // RIS and ReSTIR hold its directions in reservoirs) run on both sides.
     let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("gpu_cpu_surfaces");
     std::fs::create_dir_all(&dir).unwrap();
-    let texels: Vec<u8> = (0..16u32 * 16)
+    // 64² texels tiled twice across the floor, about 3 to a pixel: read from mip levels.
+    let texels: Vec<u8> = (0..64u32 * 64)
         .flat_map(|i| {
             [
                 (i * 7 % 256) as u8,
@@ -226,7 +227,7 @@ fn textures_and_vertex_normals_gpu_match_cpu() {
             ]
         })
         .collect();
-    image::RgbaImage::from_raw(16, 16, texels)
+    image::RgbaImage::from_raw(64, 64, texels)
         .unwrap()
         .save(dir.join("noise.png"))
         .unwrap();

@@ -194,6 +194,36 @@ fn map_options_scale_offset_and_clamp_the_texture() {
     assert!(worst < 1e-3, "a pixel {worst} off the grey texel");
 }
 
+/// A texture finer than the pixels that see it (256² one-texel checks of black and white
+/// on a floor 64 pixels wide: about 3 texels a pixel) is read from its mip levels, where
+/// each pixel finds the checks' average (half the light) in one sample; read at a point,
+/// each sample was black or white (0.5 off).
+#[test]
+fn a_texture_finer_than_the_pixels_reads_its_average_in_one_sample() {
+    let d = dir("surfaces_minified");
+    let checks = image::RgbaImage::from_fn(256, 256, |x, y| {
+        let c = if (x + y) % 2 == 0 { 255 } else { 0 };
+        image::Rgba([c, c, c, 255])
+    });
+    checks.save(d.join("checks.png")).unwrap();
+    let scene = textured_floor(&d, "checks.png");
+    let (image, stderr) = render(
+        &scene,
+        &d.join("t.exr"),
+        &["--integrator", "nee", "--sky", "1,1,1", "--spp", "1"],
+    );
+    assert!(!stderr.contains("warning: texture"), "{stderr}");
+    // sRGB 188, the encoded average of the level below, is 0.503 linear: within 0.01 of
+    // half; a point sample is 0.5 off, so that a few of them would fail the mean.
+    let off: Vec<f32> = image.pixels.iter().map(|p| (p.x - 0.5).abs()).collect();
+    let mean_off = off.iter().sum::<f32>() / off.len() as f32;
+    let worst = off.iter().fold(0f32, |a, &b| a.max(b));
+    assert!(
+        mean_off < 0.01 && worst < 0.05,
+        "mean {mean_off}, worst {worst}"
+    );
+}
+
 #[test]
 fn a_missing_texture_is_a_warning_and_kd_stays() {
     let d = dir("surfaces_missing_texture");

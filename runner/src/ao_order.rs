@@ -185,7 +185,7 @@ pub fn grid_point<const PLAIN: bool>(
     if !hit.is_hit() {
         return None;
     }
-    let s = surface_hit(buffers, &ray, &hit);
+    let s = surface_hit(buffers, &ray, &hit, 0.0);
     let mut rng = kernels::rng::Rng::new(row * grid.0 + column, 0, 0, params.seed);
     Some(kernels::integrators::ao::AoRays::new(
         buffers, s.p, s.prim, s.n, &mut rng,

@@ -154,7 +154,7 @@ fn seen(scene: &SceneBuffers, params: &FrameParams) -> [f32; 3] {
             if !hit.is_hit() {
                 continue;
             }
-            let s = surface_hit(scene, &ray, &hit);
+            let s = surface_hit(scene, &ray, &hit, 0.0);
             let material = scene.material_of(hit.prim);
             let bsdf = scene.surface_bsdf(&material, &s);
             if bsdf.is_delta() {

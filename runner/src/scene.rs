@@ -189,7 +189,7 @@ impl SurfaceAttributes {
             );
         }
         for t in &self.textures {
-            let end = t.offset as u64 + t.width as u64 * t.height as u64;
+            let end = t.offset as u64 + kernels::texture::texel_count(t);
             if t.width == 0 || t.height == 0 || end > self.texels.len() as u64 {
                 bail!(
                     "texture of {}x{} texels at {} is outside the texel buffer",

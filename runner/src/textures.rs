@@ -181,7 +181,8 @@ pub fn with_sampler(attributes: &mut SurfaceAttributes, texture: u32, sampler: u
         return entry;
     }
     let mut info = attributes.textures[texture as usize];
-    info.format = (info.format & kernels::types::TEXTURE_FORMAT) | sampler;
+    let kept = kernels::types::TEXTURE_FORMAT | kernels::types::TEXTURE_LEVELS_MASK;
+    info.format = (info.format & kept) | sampler;
     attributes.textures.push(info);
     let entry = attributes.textures.len() as u32 - 1;
     attributes.sampled.insert((texture, sampler), entry);
@@ -207,20 +208,91 @@ pub fn is_normal_map(image: &image::RgbaImage) -> bool {
     normal_like as f64 >= SHARE * (image.width() as f64 * image.height() as f64).max(1.0)
 }
 
+/// Append `image` in `format` with its mip levels (`mip_levels`); its table index.
 fn add_as(attributes: &mut SurfaceAttributes, image: &image::RgbaImage, format: u32) -> u32 {
     let offset = attributes.texels.len() as u32;
-    attributes.texels.extend(
-        image
-            .pixels()
-            .map(|p| u32::from_le_bytes([p[0], p[1], p[2], p[3]])),
-    );
+    let levels = mip_levels(image, format == kernels::types::TEXTURE_SRGB8);
     attributes.textures.push(TextureInfo {
         offset,
         width: image.width(),
         height: image.height(),
-        format,
+        format: format | (levels.len() as u32) << kernels::types::TEXTURE_LEVELS,
     });
+    for level in &levels {
+        attributes.texels.extend(
+            level
+                .pixels()
+                .map(|p| u32::from_le_bytes([p[0], p[1], p[2], p[3]])),
+        );
+    }
     attributes.textures.len() as u32 - 1
+}
+
+/// `image` and its mip levels down to one texel (`kernels::texture::level`'s layout):
+/// each texel of a level the box average of the 2 × 2 texels it covers in the level
+/// before (3 wide or high at the last column or row of an odd size, so that no texel is
+/// left out). `srgb`: colour is averaged as linear light, then encoded again; alpha and
+/// data textures are averaged as stored.
+pub fn mip_levels(image: &image::RgbaImage, srgb: bool) -> Vec<image::RgbaImage> {
+    use rayon::prelude::*;
+    let decode: Vec<f32> = (0..=255u8)
+        .map(|c| {
+            let c = c as f32 / 255.0;
+            if srgb {
+                kernels::texture::srgb_to_linear(c)
+            } else {
+                c
+            }
+        })
+        .collect();
+    let encode = |v: f32| {
+        let v = if srgb { linear_to_srgb(v) } else { v };
+        (v * 255.0).round().clamp(0.0, 255.0) as u8
+    };
+    let mut levels = vec![image.clone()];
+    while let Some(last) = levels.last().filter(|l| l.width() > 1 || l.height() > 1) {
+        let (sw, sh) = (last.width(), last.height());
+        let (w, h) = ((sw / 2).max(1), (sh / 2).max(1));
+        // The source texels that destination texel i of n covers along an axis of size s.
+        let span = |i: u32, n: u32, s: u32| {
+            let end = if i + 1 == n { s } else { (2 * i + 2).min(s) };
+            (2 * i).min(s - 1)..end
+        };
+        let mut next = image::RgbaImage::new(w, h);
+        next.par_chunks_mut(4 * w as usize)
+            .enumerate()
+            .for_each(|(y, row)| {
+                for (x, texel) in row.chunks_mut(4).enumerate() {
+                    let mut sum = [0.0f32; 4];
+                    let mut count = 0.0;
+                    for sy in span(y as u32, h, sh) {
+                        for sx in span(x as u32, w, sw) {
+                            let p = last.get_pixel(sx, sy);
+                            for c in 0..3 {
+                                sum[c] += decode[p[c] as usize];
+                            }
+                            sum[3] += p[3] as f32 / 255.0;
+                            count += 1.0;
+                        }
+                    }
+                    for c in 0..3 {
+                        texel[c] = encode(sum[c] / count);
+                    }
+                    texel[3] = (sum[3] / count * 255.0).round() as u8;
+                }
+            });
+        levels.push(next);
+    }
+    levels
+}
+
+/// Linear light → sRGB (IEC 61966-2-1), the inverse of `kernels::texture::srgb_to_linear`.
+fn linear_to_srgb(v: f32) -> f32 {
+    if v <= 0.003_130_8 {
+        v * 12.92
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
 }
 
 #[cfg(test)]
@@ -256,7 +328,9 @@ mod tests {
 
     #[test]
     fn a_texture_read_through_a_sampler_is_one_more_entry_however_often_asked() {
-        use kernels::types::{sampler, TEXTURE_FORMAT, WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT};
+        use kernels::types::{
+            sampler, TEXTURE_FORMAT, TEXTURE_LEVELS_MASK, WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT,
+        };
         let mut attributes = SurfaceAttributes::default();
         let image = image::RgbaImage::from_pixel(2, 2, image::Rgba([10, 20, 30, 255]));
         let a = add(&mut attributes, &image);
@@ -285,7 +359,42 @@ mod tests {
             (tc.offset, tc.width, tc.height),
             (t.offset, t.width, t.height)
         );
-        assert_eq!(tc.format, (t.format & TEXTURE_FORMAT) | clamp);
+        assert_eq!(tc.format, t.format | clamp);
+        assert_eq!(t.format & !(TEXTURE_FORMAT | TEXTURE_LEVELS_MASK), 0);
+    }
+
+    #[test]
+    fn mip_levels_average_the_texels_they_cover_as_linear_light() {
+        // 5 × 2: one black and one white column pair, and a fifth column of grey 128.
+        let mut image = image::RgbaImage::new(5, 2);
+        for (x, _, p) in image.enumerate_pixels_mut() {
+            let c = [0, 0, 255, 255, 128][x as usize];
+            *p = image::Rgba([c, c, c, x as u8 * 50]);
+        }
+        let data = mip_levels(&image, false);
+        let sizes: Vec<(u32, u32)> = data.iter().map(|l| l.dimensions()).collect();
+        assert_eq!(sizes, [(5, 2), (2, 1), (1, 1)]);
+        // Level 1: texel 0 covers columns 0..2, texel 1 (the last) columns 2..5.
+        assert_eq!(data[1].get_pixel(0, 0).0, [0, 0, 0, 25]);
+        let last = ((255.0 * 2.0 + 128.0) / 3.0f32).round() as u8;
+        assert_eq!(data[1].get_pixel(1, 0).0, [last, last, last, 150]);
+        // Colour: black and white average to half the light, sRGB 188, not 128.
+        let colour = mip_levels(&image, true);
+        assert_eq!(colour[1].get_pixel(0, 0)[0], 0);
+        let pair = image::RgbaImage::from_fn(2, 1, |x, _| image::Rgba([x as u8 * 255; 4]));
+        assert_eq!(
+            mip_levels(&pair, true)[1].get_pixel(0, 0).0,
+            [188, 188, 188, 128]
+        );
+        // One texel is its own last level; a texture keeps its levels with its sampler.
+        assert_eq!(mip_levels(&image::RgbaImage::new(1, 1), true).len(), 1);
+        let mut attributes = SurfaceAttributes::default();
+        let t = add(&mut attributes, &image);
+        assert_eq!(attributes.texels.len(), 10 + 2 + 1);
+        let clamp = kernels::types::sampler(kernels::types::WRAP_CLAMP, 0, false);
+        let clamped = with_sampler(&mut attributes, t, clamp);
+        let clamped = attributes.textures[clamped as usize];
+        assert_eq!(kernels::texture::levels(&clamped), 3);
     }
 
     #[test]

@@ -9,7 +9,7 @@ use crate::math::{max, min, vec3};
 use crate::rng::pcg_hash;
 use crate::sampling::orthonormal_basis;
 use crate::skip::Skip;
-use crate::texture::sample_texture;
+use crate::texture::{sample_texture, sample_texture_footprint};
 use crate::types::cwbvh_meta::{FIRST_INTERIOR_BIT, INTERIOR_HITS, TRIANGLE_HITS};
 use crate::types::{
     at, load, set_at, Bvh2Node, CwBvhNode, CwBvhPlanes, CwBvhSlotNode, GBufferTexel, Light,
@@ -370,15 +370,18 @@ impl<'a> SceneBuffers<'a> {
     /// dielectric's relative index depends on the side the ray arrived on: the material's
     /// index entering through the front, its inverse leaving.
     pub fn surface_bsdf(&self, m: &Material, s: &SurfaceHit) -> Bsdf {
+        let read = |texture: u32| {
+            sample_texture_footprint(self.textures, self.texels, texture, s.uv, s.uv_footprint)
+        };
         let texture = if m.albedo_texture == INVALID {
             s.colour
         } else {
-            s.colour * sample_texture(self.textures, self.texels, m.albedo_texture, s.uv).truncate()
+            s.colour * read(m.albedo_texture).truncate()
         };
         let mut kind = m.kind;
         let mut alpha = m.alpha;
         if m.metal_rough_texture != INVALID {
-            let t = sample_texture(self.textures, self.texels, m.metal_rough_texture, s.uv);
+            let t = read(m.metal_rough_texture);
             alpha *= t.y * t.y;
             if m.metallic * t.z >= METAL_THRESHOLD {
                 kind = BSDF_CONDUCTOR;
@@ -1216,6 +1219,9 @@ pub struct SurfaceHit {
     /// BSDF's cosines and sampling use it.
     pub ns: Vec3,
     pub uv: Vec2,
+    /// How far the pixel's footprint here spans in texture coordinates (0: a point, read
+    /// from the full-size textures): textures are read from the mip levels of that size.
+    pub uv_footprint: f32,
     /// The interpolated vertex colour (white without one): it multiplies the albedo.
     pub colour: Vec3,
     pub front_face: bool,
@@ -1230,6 +1236,7 @@ impl SurfaceHit {
             n,
             ns: n,
             uv: Vec2::ZERO,
+            uv_footprint: 0.0,
             colour: Vec3::ONE,
             front_face,
             prim,
@@ -1263,7 +1270,10 @@ impl SurfaceHit {
     }
 }
 
-pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
+/// The surface a ray hit. `cone_width`: the width there of the cone of directions of the
+/// pixel the ray's path started from (`pixel_spread` × the distance the path has
+/// travelled; 0 for a point), which chooses the mip levels its textures are read from.
+pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit, cone_width: f32) -> SurfaceHit {
     let tri = scene.triangle(hit.prim);
     let ng = tri.normal();
     let front_face = ng.dot(ray.dir) < 0.0;
@@ -1286,7 +1296,13 @@ pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
         let mut shading = base;
         if a.flags & SHADING_UVS != 0 {
             s.uv = a.uv_at(b1, b2);
+            if cone_width > 0.0 {
+                s.uv_footprint = uv_footprint(&tri, &a, ray.dir, cone_width);
+            }
             let m = load(scene.materials, tri.material as usize);
+            // Normal and height maps are read from the full-size image (as pbrt-v4 does):
+            // shading is not linear in the normal, so an averaged normal would shade a
+            // distant bumpy surface as a flatter one, not as the average of its bumps.
             if m.normal_texture != INVALID {
                 let texel = sample_texture(scene.textures, scene.texels, m.normal_texture, s.uv);
                 shading = if m.normal_map_kind == NORMAL_MAP_HEIGHT {
@@ -1310,6 +1326,27 @@ pub fn surface_hit(scene: &SceneBuffers, ray: &Ray, hit: &Hit) -> SurfaceHit {
         }
     }
     s
+}
+
+/// A footprint seen this obliquely or more is taken as seen at this cosine: the
+/// footprint of a grazing ray grows without bound, and past it the texture's average over
+/// the whole surface would be read.
+const MIN_FOOTPRINT_COSINE: f32 = 0.05;
+
+/// The span in texture coordinates of a cone `cone_width` wide arriving along `dir` at
+/// triangle `tri` with attributes `a` (ray cones, Akenine-Möller et al. 2019): the width,
+/// stretched by the obliquity, times the triangle's texture-to-surface scale
+/// √(uv area / area). 0 where the triangle has no texture area to speak of.
+pub fn uv_footprint(tri: &Triangle, a: &TriangleShading, dir: Vec3, cone_width: f32) -> f32 {
+    let (t1, t2) = (a.uv(1) - a.uv(0), a.uv(2) - a.uv(0));
+    let uv_area = 0.5 * (t1.x * t2.y - t1.y * t2.x).abs();
+    let cosine = tri.normal().dot(dir).abs().max(MIN_FOOTPRINT_COSINE);
+    let footprint = cone_width / cosine * crate::math::sqrt(uv_area / tri.area());
+    if footprint.is_finite() {
+        footprint
+    } else {
+        0.0
+    }
 }
 
 /// The slope (∂h/∂u, ∂h/∂v) of height map `texture` at `uv`, where its value is `here`:

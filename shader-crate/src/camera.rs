@@ -21,6 +21,12 @@ pub fn jittered_ray(cam: &Camera, width: u32, height: u32, x: u32, y: u32, rng: 
     primary_ray(cam, width, height, x as f32 + jx, y as f32 + jy)
 }
 
+/// The angle a pixel spans (at the image's centre): how fast the cone of directions
+/// through one pixel widens with distance (`bvh::surface_hit`'s `cone_width`).
+pub fn pixel_spread(cam: &Camera, height: u32) -> f32 {
+    2.0 * vec3(cam.up).length() / height.max(1) as f32
+}
+
 /// Build the camera from a look-at description; `fov_y_degrees` is the vertical field of
 /// view. The world is right-handed: right = forward × up.
 pub fn look_at(eye: Vec3, target: Vec3, up: Vec3, fov_y_degrees: f32, aspect: f32) -> Camera {

@@ -6,8 +6,9 @@ use spirv_std::num_traits::Float;
 
 use crate::glam::{Vec2, Vec4};
 use crate::types::{
-    load, TextureInfo, TEXTURE_FORMAT, TEXTURE_LINEAR8, TEXTURE_NEAREST, TEXTURE_RGBE,
-    TEXTURE_WRAP_U, TEXTURE_WRAP_V, WRAP_CLAMP, WRAP_MIRROR, WRAP_REPEAT,
+    load, TextureInfo, TEXTURE_FORMAT, TEXTURE_LEVELS, TEXTURE_LEVELS_MASK, TEXTURE_LINEAR8,
+    TEXTURE_NEAREST, TEXTURE_RGBE, TEXTURE_WRAP_U, TEXTURE_WRAP_V, WRAP_CLAMP, WRAP_MIRROR,
+    WRAP_REPEAT,
 };
 
 /// sRGB transfer function → linear (IEC 61966-2-1).
@@ -103,25 +104,86 @@ fn axis(t: f32, n: u32, wrap: u32, flip: bool, nearest: bool) -> (u32, u32, f32)
     }
 }
 
+/// The number of mip levels of a texture (at least 1: the image itself).
+pub fn levels(info: &TextureInfo) -> u32 {
+    ((info.format & TEXTURE_LEVELS_MASK) >> TEXTURE_LEVELS).max(1)
+}
+
+/// Mip level `level` of a texture as a texture of its own: each level is half the one
+/// before (rounded down, at least 1 texel) and follows it in the texel buffer.
+pub fn level(info: &TextureInfo, level: u32) -> TextureInfo {
+    let mut l = *info;
+    let mut i = 0;
+    while i < level {
+        l.offset += l.width * l.height;
+        l.width = (l.width / 2).max(1);
+        l.height = (l.height / 2).max(1);
+        i += 1;
+    }
+    l
+}
+
+/// Texels a texture holds, all its levels together.
+pub fn texel_count(info: &TextureInfo) -> u64 {
+    let last = level(info, levels(info) - 1);
+    (last.offset - info.offset) as u64 + last.width as u64 * last.height as u64
+}
+
 /// Lookup of texture `index` at `uv` through its sampler (`TextureInfo::format`): bilinear
 /// unless it asks for the nearest texel, repeating outside [0, 1] unless it asks to clamp
 /// or mirror. v = 0 is the bottom row of the image (the OBJ and OpenGL convention).
-/// Filtering happens on linear values.
+/// Filtering happens on linear values. The full-size image is read (no footprint).
 pub fn sample_texture(textures: &[TextureInfo], texels: &[u32], index: u32, uv: Vec2) -> Vec4 {
+    sample_texture_footprint(textures, texels, index, uv, 0.0)
+}
+
+/// `sample_texture` for a pixel whose footprint on the surface spans `footprint` in texture
+/// coordinates (`SurfaceHit::uv_footprint`): read from the mip levels whose texels are
+/// about that size, blended between the two nearest (trilinear), so that a texture seen
+/// from afar gives each pixel its average there instead of one point of it (less noise
+/// per sample, and the same image when converged). A nearest-texel sampler reads the
+/// full-size image.
+pub fn sample_texture_footprint(
+    textures: &[TextureInfo],
+    texels: &[u32],
+    index: u32,
+    uv: Vec2,
+    footprint: f32,
+) -> Vec4 {
     let info = load(textures, index as usize);
     if info.width == 0 || info.height == 0 {
         return Vec4::ONE;
     }
     let uv = if uv.is_finite() { uv } else { Vec2::ZERO };
+    let size = ((info.width * info.height) as f32).sqrt();
+    let lod = (footprint * size).log2();
+    let top = (levels(&info) - 1) as f32;
+    // Magnified (or no footprint, or a NaN: `is_nan` first), the image itself.
+    if lod.is_nan() || lod <= 0.0 || top == 0.0 || info.format & TEXTURE_NEAREST != 0 {
+        return sample_level(texels, &info, uv);
+    }
+    let lod = lod.min(top);
+    let fine = lod.floor();
+    let coarse_weight = lod - fine;
+    let near = sample_level(texels, &level(&info, fine as u32), uv);
+    if coarse_weight <= 0.0 {
+        return near;
+    }
+    let far = sample_level(texels, &level(&info, fine as u32 + 1), uv);
+    near * (1.0 - coarse_weight) + far * coarse_weight
+}
+
+/// A lookup in one level of a texture (`sample_texture`'s filtering and wrapping).
+fn sample_level(texels: &[u32], info: &TextureInfo, uv: Vec2) -> Vec4 {
     let nearest = info.format & TEXTURE_NEAREST != 0;
     let wrap = |shift: u32| (info.format >> shift) & 3;
     let (xa, xb, fx) = axis(uv.x, info.width, wrap(TEXTURE_WRAP_U), false, nearest);
     let (ya, yb, fy) = axis(uv.y, info.height, wrap(TEXTURE_WRAP_V), true, nearest);
     if nearest {
-        return texel(texels, &info, xa, ya);
+        return texel(texels, info, xa, ya);
     }
-    let top = texel(texels, &info, xa, ya) * (1.0 - fx) + texel(texels, &info, xb, ya) * fx;
-    let bottom = texel(texels, &info, xa, yb) * (1.0 - fx) + texel(texels, &info, xb, yb) * fx;
+    let top = texel(texels, info, xa, ya) * (1.0 - fx) + texel(texels, info, xb, ya) * fx;
+    let bottom = texel(texels, info, xa, yb) * (1.0 - fx) + texel(texels, info, xb, yb) * fx;
     top * (1.0 - fy) + bottom * fy
 }
 
@@ -237,5 +299,64 @@ mod tests {
         let top = sample_texture(&info, &texels, 0, Vec2::new(0.5, 0.75));
         assert!(bottom.z > 0.99 && bottom.x < 0.01, "{bottom}");
         assert!(top.x > 0.99 && top.z < 0.01, "{top}");
+    }
+
+    #[test]
+    fn mip_levels_follow_the_image_and_the_footprint_chooses_and_blends_them() {
+        use crate::types::{TEXTURE_LEVELS, TEXTURE_LINEAR8};
+        // 5 × 3, then 2 × 1, then 1 × 1; after some other texture's 7 texels.
+        let info = TextureInfo {
+            offset: 7,
+            width: 5,
+            height: 3,
+            format: TEXTURE_LINEAR8 | 3 << TEXTURE_LEVELS,
+        };
+        assert_eq!(levels(&info), 3);
+        let l1 = level(&info, 1);
+        assert_eq!((l1.offset, l1.width, l1.height), (7 + 15, 2, 1));
+        let l2 = level(&info, 2);
+        assert_eq!((l2.offset, l2.width, l2.height), (7 + 15 + 2, 1, 1));
+        assert_eq!(texel_count(&info), 18);
+        // Without the levels' bits: the image alone.
+        let alone = TextureInfo {
+            format: TEXTURE_LINEAR8,
+            ..info
+        };
+        assert_eq!((levels(&alone), texel_count(&alone)), (1, 15));
+
+        // A grey level of 0 (the image), 100 (level 1), 200 (level 2), linear bytes.
+        let mut texels = [0u32; 25];
+        texels[22] = rgba(100, 100, 100);
+        texels[23] = rgba(100, 100, 100);
+        texels[24] = rgba(200, 200, 200);
+        let table = [info];
+        let at = |footprint: f32| {
+            sample_texture_footprint(&table, &texels, 0, Vec2::new(0.3, 0.6), footprint).x * 255.0
+        };
+        // lod = log2(footprint · √(5 · 3)): below 0 the image; 1 and 2 those levels;
+        // past the last level, the last; half way, the average of the two.
+        let size = 15f32.sqrt();
+        for (footprint, expect) in [
+            (0.0, 0.0),
+            (0.5 / size, 0.0),
+            (2.0 / size, 100.0),
+            (4.0 / size, 200.0),
+            (64.0 / size, 200.0),
+            (2f32.powf(1.5) / size, 150.0),
+            (f32::NAN, 0.0),
+        ] {
+            assert!(
+                (at(footprint) - expect).abs() < 1e-3,
+                "footprint {footprint}: {}",
+                at(footprint)
+            );
+        }
+        // A nearest-texel sampler reads the image.
+        let nearest = [TextureInfo {
+            format: info.format | TEXTURE_NEAREST,
+            ..info
+        }];
+        let x = sample_texture_footprint(&nearest, &texels, 0, Vec2::new(0.3, 0.6), 1.0).x;
+        assert_eq!(x, 0.0);
     }
 }

@@ -417,8 +417,9 @@ impl TriangleShading {
 
 /// One texture in the texel buffer: `width × height` texels from `offset` on, row by row
 /// from the top, one 32-bit word each in `format`'s low byte (`TEXTURE_FORMAT`); its
-/// higher bits are the sampler (`TEXTURE_WRAP_U`, `TEXTURE_WRAP_V`, `TEXTURE_NEAREST`).
-/// Textures of one image with different samplers share its texels.
+/// higher bits are the sampler (`TEXTURE_WRAP_U`, `TEXTURE_WRAP_V`, `TEXTURE_NEAREST`) and
+/// the number of mip levels (`TEXTURE_LEVELS`), stored one after the other from `offset`
+/// (`texture::level`). Textures of one image with different samplers share its texels.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable))]
@@ -449,6 +450,13 @@ pub const WRAP_CLAMP: u32 = 1;
 pub const WRAP_MIRROR: u32 = 2;
 /// The texel a point falls in, unfiltered (glTF's `magFilter` NEAREST: pixel art, voxels).
 pub const TEXTURE_NEAREST: u32 = 1 << 12;
+
+/// Where the number of mip levels is in `TextureInfo::format` (5 bits; 0 and 1 both mean
+/// the full-size image alone): each level half the one before (rounded down, at least 1),
+/// box-filtered, so that a surface seen from afar reads its texture's average over the
+/// pixel's footprint (`texture::sample_texture_footprint`).
+pub const TEXTURE_LEVELS: u32 = 16;
+pub const TEXTURE_LEVELS_MASK: u32 = 0x1f << TEXTURE_LEVELS;
 
 /// The sampler bits of `TextureInfo::format`: wrap modes along u and v, and whether to read
 /// the nearest texel instead of filtering.

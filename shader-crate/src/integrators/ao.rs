@@ -122,7 +122,7 @@ pub fn camera_hit<const PLAIN: bool>(scene: &SceneBuffers, ray: &Ray) -> Option<
     if !hit.is_hit() {
         return None;
     }
-    let s = surface_hit(scene, ray, &hit);
+    let s = surface_hit(scene, ray, &hit, 0.0);
     Some((s.p, s.prim, s.n))
 }
 

@@ -11,6 +11,7 @@
 //! constant radiance.
 use crate::bsdf::{Bsdf, BSDF_DIFFUSE};
 use crate::bvh::{shadow_ray, surface_hit, SceneBuffers, SurfaceHit};
+use crate::camera::pixel_spread;
 use crate::env::{escaped_radiance, infinite_pdf, sample_infinite, unsampled_radiance};
 use crate::glam::Vec3;
 use crate::integrators::ris::{self, ShadingPoint};
@@ -46,6 +47,11 @@ pub struct PathState {
     /// The vertex `ray` left sampled the environment map and sun by NEE (so what of them the
     /// ray finds is weighted against that, by MIS or not at all).
     pub env_sampled: bool,
+    /// The length of the path from the camera to `ray`'s origin: with the pixel's spread
+    /// it widens the footprint that chooses texture levels (`surface_hit`'s `cone_width`;
+    /// the widening by curved or rough surfaces on the way is left out, so that textures
+    /// are read sharper rather than blurrier than the footprint asks).
+    pub travelled: f32,
 }
 
 impl PathState {
@@ -57,6 +63,7 @@ impl PathState {
             bsdf_pdf: 0.0,
             delta: false,
             env_sampled: false,
+            travelled: 0.0,
         }
     }
 
@@ -260,6 +267,7 @@ pub fn trace_path<const ALL_DIFFUSE: bool, const STRATEGY: u32>(
     let mut st = state;
     let p_infinite = infinite_probability::<ALL_DIFFUSE>(params);
     let has_lights = !scene.lights.is_empty() || p_infinite > 0.0;
+    let spread = pixel_spread(&params.camera, params.height);
     // A vertex's NEE shadow ray is traced by the next turn of the loop, before the path's
     // next segment: one traversal call site for both kinds of ray, so the kernel holds one
     // inlined traversal and its stack, and a warp's threads with a shadow ray and those
@@ -306,7 +314,8 @@ pub fn trace_path<const ALL_DIFFUSE: bool, const STRATEGY: u32>(
             radiance += st.throughput * (unsampled + sampled * weight);
             break;
         }
-        let s = surface_hit(scene, &st.ray, &hit);
+        st.travelled += hit.t;
+        let s = surface_hit(scene, &st.ray, &hit, spread * st.travelled);
         let material = scene.material_of(hit.prim);
 
         // Emission reached by this segment.

@@ -121,7 +121,8 @@ pub fn primary_hit<const PLAIN: bool>(
             ..Default::default()
         };
     }
-    let s = surface_hit(scene, &ray, &hit);
+    let cone_width = crate::camera::pixel_spread(&params.camera, params.height) * hit.t;
+    let s = surface_hit(scene, &ray, &hit, cone_width);
     let bsdf = if PLAIN {
         Bsdf::diffuse(scene.material_of(hit.prim).albedo())
     } else {
@@ -630,6 +631,7 @@ fn shaded_radiance<const PLAIN: bool>(
         let mut rng = pass_rng(params, pixel, STREAM_SHADE);
         let s = SurfaceHit::flat(sp.p, sp.n, g.front(), g.prim);
         let mut state = PathState::camera(crate::intersect::Ray::new(eye, -sp.wo));
+        state.travelled = g.depth;
         if state.bounce(&s, &sp.bsdf, params, &mut rng) {
             // The reservoir sampled the map and the sun here: what the bounce finds of
             // them is NEE's to weigh (not counted again).
