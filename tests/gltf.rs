@@ -798,6 +798,108 @@ fn broken_meshopt_compression_is_one_error_naming_the_view() {
     );
 }
 
+/// A two-joint skin: a quad whose top corners hang on joint B, one fully and one half (the
+/// other half on joint A, at the origin). In the file's pose joint B sits where it was bound
+/// (0, 1, 0) but turned 90° about z; the mesh's own node is moved 100 along x, which the
+/// specification says a skinned mesh ignores. `joint` is the top left corner's joint.
+fn skinned_quad(joint: u8) -> String {
+    let mut buffer: Vec<u8> = Vec::new();
+    let mut views = Vec::new();
+    let mut put = |bytes: Vec<u8>| {
+        views.push(format!(
+            r#"{{"buffer":0,"byteOffset":{},"byteLength":{}}}"#,
+            buffer.len(),
+            bytes.len()
+        ));
+        buffer.extend(bytes);
+    };
+    let f32s = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    put(f32s(&[
+        0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 2.0, 0.0, 1.0, 2.0, 0.0,
+    ]));
+    put(f32s(&[0.0, 0.0, 1.0].repeat(4)));
+    put(vec![0, 0, 0, 0, 0, 0, 0, 0, joint, 0, 0, 0, 0, 1, 0, 0]);
+    put(f32s(&[
+        1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.5, 0.5, 0.0, 0.0,
+    ]));
+    put([0u16, 1, 2, 1, 3, 2]
+        .iter()
+        .flat_map(|i| i.to_le_bytes())
+        .collect());
+    // Inverse bind matrices (column-major): A's the identity, B's a move by (0, −1, 0).
+    let identity = [
+        1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+    ];
+    let mut down = identity;
+    down[13] = -1.0;
+    put(f32s(&[identity, down].concat()));
+    let half = std::f32::consts::FRAC_1_SQRT_2;
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],
+"nodes":[{{"children":[1,2]}},{{"mesh":0,"skin":0,"translation":[100,0,0]}},{{"children":[3]}},
+{{"translation":[0,1,0],"rotation":[0,0,{half},{half}]}}],
+"skins":[{{"joints":[2,3],"inverseBindMatrices":5}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"NORMAL":1,"JOINTS_0":2,"WEIGHTS_0":3}},"indices":4}}]}}],
+"accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[0,0,0],"max":[1,2,0]}},
+{{"bufferView":1,"componentType":5126,"count":4,"type":"VEC3"}},
+{{"bufferView":2,"componentType":5121,"count":4,"type":"VEC4"}},
+{{"bufferView":3,"componentType":5126,"count":4,"type":"VEC4"}},
+{{"bufferView":4,"componentType":5123,"count":6,"type":"SCALAR"}},
+{{"bufferView":5,"componentType":5126,"count":2,"type":"MAT4"}}],
+"bufferViews":[{}],
+"buffers":[{{"byteLength":{},"uri":"data:application/octet-stream;base64,{}"}}]}}"#,
+        views.join(","),
+        buffer.len(),
+        base64(&buffer)
+    )
+}
+
+/// Skinned meshes are placed by their joints in the file's pose (each vertex by its
+/// joints' world transform × inverse bind matrix, by weight), not by their node: before,
+/// the quad was drawn as bound and 100 units off.
+#[test]
+fn skinned_meshes_take_the_pose_of_their_joints() {
+    let scene = runner::gltf_scene::parse_gltf_bytes("skin.gltf", skinned_quad(1).as_bytes())
+        .unwrap_or_else(|e| panic!("{e}"));
+    let corners: Vec<[f32; 3]> = scene
+        .triangles
+        .iter()
+        .flat_map(|t| [t.p0, t.p1, t.p2])
+        .collect();
+    // Bottom corners stay on joint A; top left (0, 2) turns about B to (−1, 1); top right
+    // (1, 2) is half on A (itself) and half on B (−1, 2): (0, 2).
+    let expected = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [-1.0, 1.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 2.0, 0.0],
+        [-1.0, 1.0, 0.0],
+    ];
+    assert_eq!(corners.len(), expected.len());
+    for (c, e) in corners.iter().zip(expected) {
+        assert!(
+            (Vec3::from(*c) - Vec3::from(e)).length() < 1e-5,
+            "{corners:?}"
+        );
+    }
+    // Normals turn with the joints (a turn about z keeps +z).
+    for shading in &scene.attributes.shading {
+        for n in shading.normals.chunks(3) {
+            assert!((Vec3::from_slice(n) - Vec3::Z).length() < 1e-5, "{n:?}");
+        }
+    }
+    // A joint the skin does not have is one error naming the primitive.
+    match runner::gltf_scene::parse_gltf_bytes("skin.gltf", skinned_quad(7).as_bytes()) {
+        Ok(_) => panic!("loaded"),
+        Err(e) => assert!(
+            e.to_string()
+                .contains("mesh 0 primitive 0: JOINTS_0 names joint 7 of a skin with 2"),
+            "{e}"
+        ),
+    }
+}
+
 /// A .gltf whose buffer file is not beside it is one error naming that file (the importer
 /// says only "No such file or directory").
 #[test]

@@ -5,7 +5,8 @@
 //! first (`gltf_meshopt`), materials mapped onto our BSDF family, base
 //! colour, normal, metallic-roughness and emissive textures (with `KHR_texture_transform`,
 //! one per material, baked into the texture coordinates), `KHR_lights_punctual` lights
-//! (see `gltf_lights`), and the first camera as the default view.
+//! (see `gltf_lights`), skinned meshes in the pose their joints' nodes give (`gltf_skin`),
+//! and the first camera as the default view.
 //!
 //! Material mapping (the metallic-roughness model; α = roughness²):
 //! - `KHR_materials_transmission` > 0: a dielectric of index `KHR_materials_ior` (1.5);
@@ -522,6 +523,11 @@ fn from_import(name: &str, imported: Imported) -> Result<Scene> {
     let mut point_lights: Vec<PointLight> = Vec::new();
     let placed = placed_nodes(name, &doc, scene)?;
     check_memory(name, &placed)?;
+    // Skins' joints: every node's world transform (a joint need not be in the scene's tree).
+    let worlds = match doc.skins().len() {
+        0 => Vec::new(),
+        _ => crate::gltf_skin::world_transforms(&doc),
+    };
     for (node, world) in placed {
         if let (None, Some(cam)) = (camera, node.camera()) {
             if let gltf::camera::Projection::Perspective(p) = cam.projection() {
@@ -572,7 +578,6 @@ fn from_import(name: &str, imported: Imported) -> Result<Scene> {
         }
         let Some(mesh) = node.mesh() else { continue };
         let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
-        let flips = Mat3::from_mat4(world).determinant() < 0.0;
         for prim in mesh.primitives() {
             if prim.mode() != gltf::mesh::Mode::Triangles {
                 ignored.push("primitives other than triangle lists");
@@ -593,14 +598,32 @@ fn from_import(name: &str, imported: Imported) -> Result<Scene> {
                 ignored.push("primitives without POSITION");
                 continue;
             };
+            // A skinned primitive's vertices each have their own transform (`gltf_skin`).
+            let skin = crate::gltf_skin::Skinning::read(
+                &node,
+                &prim,
+                &worlds,
+                &buffers,
+                positions.len(),
+                &at,
+            )?;
+            let place = |v: usize| skin.as_ref().map_or(world, |s| s.matrix(v));
             let positions: Vec<Vec3> = positions
                 .into_iter()
-                .map(|p| world.transform_point3(Vec3::from(p)))
+                .enumerate()
+                .map(|(v, p)| place(v).transform_point3(Vec3::from(p)))
                 .collect();
             let normals: Option<Vec<Vec3>> =
                 vertex::vectors::<3>(&prim, Semantic::Normals, &buffers, &at)?.map(|n| {
                     n.into_iter()
-                        .map(|n| (normal_matrix * Vec3::from(n)).normalize_or_zero())
+                        .enumerate()
+                        .map(|(v, n)| {
+                            let m = match &skin {
+                                Some(s) => Mat3::from_mat4(s.matrix(v)).inverse().transpose(),
+                                None => normal_matrix,
+                            };
+                            (m * Vec3::from(n)).normalize_or_zero()
+                        })
                         .collect()
                 });
             if let (Some(a), None) = (prim.get(&Semantic::Colors(0)), reader.read_colors(0)) {
@@ -625,14 +648,16 @@ fn from_import(name: &str, imported: Imported) -> Result<Scene> {
             let uvs = uvs.or_else(|| constant_mask.then(|| vec![Vec2::ZERO; positions.len()]));
             // TANGENT: directions like positions' (not normals'); a mirroring transform
             // turns the bitangent's side.
-            let mirror = if flips { -1.0 } else { 1.0 };
+            let mirrors = |v: usize| Mat3::from_mat4(place(v)).determinant() < 0.0;
+            let mirror = |v: usize| if mirrors(v) { -1.0 } else { 1.0 };
             let tangents: Option<Vec<Vec4>> =
                 vertex::vectors::<4>(&prim, Semantic::Tangents, &buffers, &at)?.map(|t| {
                     t.into_iter()
-                        .map(|[x, y, z, w]| {
-                            world
+                        .enumerate()
+                        .map(|(v, [x, y, z, w])| {
+                            place(v)
                                 .transform_vector3(Vec3::new(x, y, z))
-                                .extend(w * mirror)
+                                .extend(w * mirror(v))
                         })
                         .collect()
                 });
@@ -656,15 +681,16 @@ fn from_import(name: &str, imported: Imported) -> Result<Scene> {
                 material_index.is_some_and(|i| double_sided[i] && materials[i].is_emissive());
             for face in indices.as_chunks::<3>().0 {
                 let mut corners = [face[0] as usize, face[1] as usize, face[2] as usize];
-                if flips {
-                    corners.swap(1, 2);
-                }
                 if corners.iter().any(|&c| c >= positions.len()) {
                     bail!(
                         "scene '{name}': index {} is out of range ({} vertices)",
                         corners.iter().max().unwrap(),
                         positions.len()
                     );
+                }
+                // Mirrored where its first corner's transform is (a skin's vary by vertex).
+                if mirrors(corners[0]) {
+                    corners.swap(1, 2);
                 }
                 let mut sides = vec![corners];
                 if two_sided_emitter {
@@ -750,8 +776,9 @@ fn placed_nodes<'a>(
 }
 
 /// Bytes a primitive's vertex arrays hold while it is read: positions, normals, tangents,
-/// texture coordinates and colours (12 + 12 + 16 + 8 + 12).
-const BYTES_PER_GLTF_VERTEX: u64 = 60;
+/// texture coordinates, colours, and a skin's joints and weights (12 + 12 + 16 + 8 + 12 +
+/// 24).
+const BYTES_PER_GLTF_VERTEX: u64 = 84;
 
 /// Refuses, before reading any geometry, a scene whose triangles cannot fit in memory: a
 /// small file can name many (a mesh placed by many nodes, or a sparse accessor without a

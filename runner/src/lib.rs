@@ -16,6 +16,7 @@ pub mod gltf_attributes;
 pub mod gltf_lights;
 pub mod gltf_meshopt;
 pub mod gltf_scene;
+pub mod gltf_skin;
 pub mod gpu;
 pub mod integrator;
 pub mod light_shares;
